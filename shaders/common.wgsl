@@ -1,0 +1,139 @@
+// common.wgsl: what every pass shares: the layouts of the buffers (kept in sync with
+// src/gpu/layout.rs, checked by tests/shaders.rs), the spline basis (mirrors src/spline.rs),
+// the half vector and the lobe math (mirror src/cpu/common.rs). No entry point.
+
+// Texels per uniform chunk: 448 * 144 bytes = 64512 bytes <= 64 KiB, a multiple of 256.
+const TEXEL_CHUNK: u32 = 448u;
+// Pixels per uniform chunk: 1344 * 48 bytes = 64512 bytes.
+const PIXEL_CHUNK: u32 = 1344u;
+// Threads per workgroup in every pass.
+const WG: u32 = 64u;
+const HALF_PI: f32 = 1.5707963267948966;
+// log(x) is taken of max(x, TINY) so that it is finite; x <= 0 is handled by selects.
+const TINY: f32 = 1e-30;
+// m1 x^(m1 - 1) diverges as x -> 0 for m1 < 1; the dn term clamps it here.
+const DPOW_MAX: f32 = 1e10;
+const HALF_VECTOR_EPS: f32 = 1e-6;
+
+// One dispatch's parameters. Kept in sync with `Params` in src/gpu/layout.rs.
+struct Params {
+    // pixels in the pixel list (per-pixel passes) or in the uniform pixel chunk (texel pass)
+    n_pixels: u32,
+    // texels in the uniform texel chunk (per-pixel passes) or in the texel list (texel pass)
+    n_texels: u32,
+    // 1: the first chunk of a sum, so write instead of add
+    first: u32,
+    // 1: perspective camera, so h, theta_d and the coefficients depend on the pair
+    perspective: u32,
+    // cc[(k * 2 + t) * 6 + j] = (ctrl[idx(k, 0, t, j)], ctrl[idx(k, 1, t, j)], ctrl[idx(k, 2, t, j)], 0)
+    cc: array<vec4<f32>, 36>,
+}
+
+// One environment texel. Kept in sync with `Texel` in src/gpu/layout.rs.
+struct Texel {
+    // xyz: direction w_i; w: d_omega_i
+    w: vec4<f32>,
+    // orthographic camera: xyz the half vector, w theta_d
+    h: vec4<f32>,
+    // xyz: L^k(i) d_omega_i
+    ld: vec4<f32>,
+    // orthographic camera: coef[k * 2 + t] = (m_{0,t}^k, m_{1,t}^k, m_{2,t}^k, 0) at theta_d
+    coef: array<vec4<f32>, 6>,
+}
+
+// One foreground pixel. Kept in sync with `Pixel` in src/gpu/layout.rs.
+struct Pixel {
+    // xyz: the normal as given
+    n: vec4<f32>,
+    // xyz: the view direction w_p
+    wp: vec4<f32>,
+    // xyz: the upstream gradient dLoss/dI (backward passes)
+    g: vec4<f32>,
+}
+
+// The 9 knots of the quadratic clamped uniform B-spline on [0, pi/2].
+const KNOTS = array<f32, 9>(0.0, 0.0, 0.0, 0.39269908169872414, 0.7853981633974483,
+                            1.1780972450961724, 1.5707963267948966, 1.5707963267948966,
+                            1.5707963267948966);
+
+// B_0..B_5 at t by Cox-de Boor; spans half-open except the last.
+fn spline_basis(t_in: f32) -> array<f32, 6> {
+    let t = clamp(t_in, 0.0, HALF_PI);
+    var b = array<f32, 8>(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+    var span = 2u;
+    if t >= KNOTS[5] {
+        span = 5u;
+    } else if t >= KNOTS[4] {
+        span = 4u;
+    } else if t >= KNOTS[3] {
+        span = 3u;
+    }
+    b[span] = 1.0;
+    for (var d = 1u; d <= 2u; d++) {
+        for (var j = 0u; j < 8u - d; j++) {
+            var v = 0.0;
+            let den0 = KNOTS[j + d] - KNOTS[j];
+            if den0 > 0.0 {
+                v += (t - KNOTS[j]) / den0 * b[j];
+            }
+            let den1 = KNOTS[j + d + 1u] - KNOTS[j + 1u];
+            if den1 > 0.0 {
+                v += (KNOTS[j + d + 1u] - t) / den1 * b[j + 1u];
+            }
+            b[j] = v;
+        }
+    }
+    return array<f32, 6>(b[0], b[1], b[2], b[3], b[4], b[5]);
+}
+
+// Half vector of w and wp (xyz) and theta_d (w); h = 0 where w = -wp.
+fn half_vector(w: vec3<f32>, wp: vec3<f32>) -> vec4<f32> {
+    let s = w + wp;
+    let len = length(s);
+    var h = vec3<f32>(0.0);
+    if len >= HALF_VECTOR_EPS {
+        h = s / len;
+    }
+    return vec4<f32>(h, acos(clamp(dot(w, h), 0.0, 1.0)));
+}
+
+// The coefficient vector (over lobes) of channel k, coefficient t at the basis b.
+fn pair_coef(b: array<f32, 6>, k: u32, t: u32) -> vec3<f32> {
+    let base = (k * 2u + t) * 6u;
+    var m = vec3<f32>(0.0);
+    for (var j = 0u; j < 6u; j++) {
+        m += b[j] * params.cc[base + j].xyz;
+    }
+    return m;
+}
+
+// exp(y) - 1 without cancellation: a degree-8 Taylor polynomial where |y| < 0.5
+// (truncation error < 1.1e-8 relative), exp(y) - 1 elsewhere.
+fn stable_expm1(y: vec3<f32>) -> vec3<f32> {
+    let series = y * (1.0 + y / 2.0 * (1.0 + y / 3.0 * (1.0 + y / 4.0 * (1.0 + y / 5.0
+        * (1.0 + y / 6.0 * (1.0 + y / 7.0 * (1.0 + y / 8.0)))))));
+    return select(exp(y) - 1.0, series, abs(y) < vec3<f32>(0.5));
+}
+
+// log(x) for the lobe powers; finite for every x.
+fn lobe_log(x: f32) -> f32 {
+    return log(max(x, TINY));
+}
+
+// x^e per lobe, with x^e = 0 at x = 0 for e > 0 and x^0 = 1.
+fn lobe_pow(x: f32, lnx: f32, e: vec3<f32>) -> vec3<f32> {
+    let p = select(exp(e * lnx), vec3<f32>(0.0), vec3<bool>(x <= 0.0));
+    return select(p, vec3<f32>(1.0), e == vec3<f32>(0.0));
+}
+
+// x^e ln x per lobe (given p = x^e), 0 at x = 0.
+fn lobe_pow_log(x: f32, lnx: f32, p: vec3<f32>) -> vec3<f32> {
+    return select(p * lnx, vec3<f32>(0.0), vec3<bool>(x <= 0.0));
+}
+
+// e x^(e - 1) per lobe, 0 at x = 0 and for e = 0, clamped to DPOW_MAX.
+fn lobe_dpow(x: f32, lnx: f32, e: vec3<f32>) -> vec3<f32> {
+    let d = min(e * exp((e - 1.0) * lnx), vec3<f32>(DPOW_MAX));
+    let zero = vec3<bool>(x <= 0.0) | (e == vec3<f32>(0.0));
+    return select(d, vec3<f32>(0.0), zero);
+}

@@ -1,0 +1,59 @@
+//! The lobe math of shaders/common.wgsl in f64, with the same helper names.
+
+use crate::prepare::{N_COEF_VALUES, PixelRec, TexelRec, coefficients, half_vector};
+
+/// log(x) is taken of max(x, TINY), as in the shaders.
+pub const TINY: f64 = 1e-30;
+/// Clamp of m1 x^(m1 - 1) in the dn term, as in the shaders.
+pub const DPOW_MAX: f64 = 1e10;
+
+/// exp(y) - 1 without cancellation.
+pub fn stable_expm1(y: f64) -> f64 {
+    y.exp_m1()
+}
+
+/// log(x) for the lobe powers; finite for every x.
+pub fn lobe_log(x: f64) -> f64 {
+    x.max(TINY).ln()
+}
+
+/// x^e, with x^e = 0 at x = 0 for e > 0 and x^0 = 1.
+pub fn lobe_pow(x: f64, lnx: f64, e: f64) -> f64 {
+    if e == 0.0 {
+        1.0
+    } else if x <= 0.0 {
+        0.0
+    } else {
+        (e * lnx).exp()
+    }
+}
+
+/// x^e ln x given p = x^e; 0 at x = 0.
+pub fn lobe_pow_log(x: f64, lnx: f64, p: f64) -> f64 {
+    if x <= 0.0 { 0.0 } else { p * lnx }
+}
+
+/// e x^(e - 1); 0 at x = 0 and for e = 0; clamped to DPOW_MAX.
+pub fn lobe_dpow(x: f64, lnx: f64, e: f64) -> f64 {
+    if x <= 0.0 || e == 0.0 {
+        0.0
+    } else {
+        (e * ((e - 1.0) * lnx).exp()).min(DPOW_MAX)
+    }
+}
+
+/// The half vector and the 18 coefficients for a pixel-texel pair: from the texel table
+/// for orthographic cameras, else from the pair's theta_d. Also theta_d.
+pub fn pair_terms(
+    ctrl: &[f64; crate::N_PARAMS],
+    perspective: bool,
+    t: &TexelRec,
+    p: &PixelRec,
+) -> ([f64; 3], [f64; N_COEF_VALUES], f64) {
+    if !perspective {
+        (t.h, t.coef, t.theta_d)
+    } else {
+        let (h, theta_d) = half_vector(t.w, p.wp);
+        (h, coefficients(ctrl, theta_d), theta_d)
+    }
+}

@@ -1,0 +1,1 @@
+//! Built-in default scene parts: a procedural HDR environment (sky, sun, ground).

@@ -1,0 +1,122 @@
+//! matedit renders and differentiates the physically based rendering layer of Liu et al.,
+//! "Material Editing Using a Physically Based Rendering Network" (ICCV 2017): per-pixel
+//! normals lit by an HDR environment map through a Directional Statistics BRDF.
+//!
+//! Scenes, materials and environment maps are plain types ([`Scene`], [`Batch`],
+//! [`Material`], [`EnvMap`]); a [`Renderer`] runs the forward pass ([`Renderer::render`])
+//! and the vector-Jacobian product ([`Renderer::backward`]) on whichever backend it holds:
+//! WGSL compute shaders through wgpu ([`gpu`]) or the f64 CPU reference ([`cpu`]).
+//!
+//! ```no_run
+//! use matedit::{Batch, Camera, Device, EnvMap, Material, NormalMap, Renderer, Scene};
+//! let scene = Scene {
+//!     normals: NormalMap::sphere(64),
+//!     env: EnvMap::constant(64, 128, Default::default(), [1.0; 3])?,
+//!     material: Material::constant("plastic", [(0.5, 1.0), (2.0, 50.0), (0.0, 0.0)])?,
+//!     camera: Camera::Orthographic,
+//! };
+//! let batch = Batch::single(scene)?;
+//! let renderer = Renderer::new(Device::Auto)?;
+//! let image = &renderer.render(&batch)?[0];
+//! # Ok::<(), matedit::Error>(())
+//! ```
+
+pub mod camera;
+pub mod cpu;
+pub mod envmap;
+pub mod error;
+pub mod defaults;
+pub mod gpu;
+pub mod io;
+pub mod material;
+pub mod prepare;
+pub mod presets;
+pub mod scene;
+pub mod spline;
+
+pub use camera::Camera;
+pub use envmap::{Convention, EnvMap};
+pub use error::{Error, Result};
+pub use material::{Material, N_PARAMS};
+pub use scene::{Batch, Gradients, Image, NormalMap, Scene};
+
+/// Which backend a [`Renderer`] should use.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Device {
+    /// A hardware GPU if there is one, else the fastest path on this machine; never fails
+    /// for lack of a GPU.
+    #[default]
+    Auto,
+    /// Any wgpu adapter (a hardware GPU first, else a software one such as lavapipe); an
+    /// error if there is none.
+    Gpu,
+    /// The f64 CPU reference.
+    Cpu,
+}
+
+impl std::str::FromStr for Device {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        match s {
+            "auto" => Ok(Device::Auto),
+            "gpu" => Ok(Device::Gpu),
+            "cpu" => Ok(Device::Cpu),
+            _ => Err(format!("unknown device '{s}': expected auto, gpu or cpu")),
+        }
+    }
+}
+
+/// A backend: something that runs the layer's forward and backward passes on a batch.
+pub trait Backend {
+    /// A one-line description: which backend and adapter.
+    fn describe(&self) -> String;
+    /// One image per scene.
+    fn render(&self, batch: &Batch) -> Result<Vec<Image>>;
+    /// One set of gradients per scene, for upstream dLoss/dImage `upstream` (one image per scene).
+    fn backward(&self, batch: &Batch, upstream: &[Image]) -> Result<Vec<Gradients>>;
+}
+
+/// Renders and differentiates batches on one backend.
+pub struct Renderer {
+    backend: Box<dyn Backend>,
+}
+
+impl Renderer {
+    /// A renderer on the given device.
+    ///
+    /// `Device::Auto` takes a hardware GPU, else a software GPU adapter (lavapipe, which
+    /// runs f32 and vectorised on all cores and beats the f64 reference), else the CPU
+    /// reference.
+    pub fn new(device: Device) -> Result<Self> {
+        let backend: Box<dyn Backend> = match device {
+            Device::Cpu => Box::new(cpu::CpuReference),
+            Device::Gpu => Box::new(gpu::GpuRenderer::new()?),
+            Device::Auto => match gpu::GpuRenderer::new() {
+                Ok(g) => Box::new(g),
+                Err(_) => Box::new(cpu::CpuReference),
+            },
+        };
+        Ok(Renderer { backend })
+    }
+
+    /// A renderer over any backend.
+    pub fn with_backend(backend: Box<dyn Backend>) -> Self {
+        Renderer { backend }
+    }
+
+    /// Which backend and adapter this renderer runs on.
+    pub fn describe(&self) -> String {
+        self.backend.describe()
+    }
+
+    /// One image per scene of the batch.
+    pub fn render(&self, batch: &Batch) -> Result<Vec<Image>> {
+        self.backend.render(batch)
+    }
+
+    /// dLoss/dL, dLoss/dn and dLoss/dctrl per scene, given dLoss/dImage per scene.
+    pub fn backward(&self, batch: &Batch, upstream: &[Image]) -> Result<Vec<Gradients>> {
+        batch.check_upstream(upstream)?;
+        self.backend.backward(batch, upstream)
+    }
+}

@@ -1,0 +1,107 @@
+//! The material: a Directional Statistics BRDF whose 3 channels x 3 lobes x 2 coefficients
+//! vary with theta_d through 6 spline control points, 108 numbers in all.
+
+use crate::error::{Result, invalid};
+use crate::spline::{N_CTRL_POINTS, spline_basis};
+
+/// Colour channels (R, G, B).
+pub const N_CHANNELS: usize = 3;
+/// Lobes per channel.
+pub const N_LOBES: usize = 3;
+/// Coefficients per lobe: t = 0 the scale m0 (kappa), t = 1 the exponent m1 (gamma).
+pub const N_COEFS: usize = 2;
+/// Control points in a material: 3 x 3 x 2 x 6 = 108.
+pub const N_PARAMS: usize = N_CHANNELS * N_LOBES * N_COEFS * N_CTRL_POINTS;
+
+/// Largest |m0| control point accepted: keeps exp(m0 x^m1) far from f32 overflow.
+pub const MAX_ABS_SCALE: f64 = 40.0;
+/// Largest exponent control point accepted.
+pub const MAX_EXPONENT: f64 = 1.0e4;
+
+/// Flat index of control point j of coefficient t of lobe s of channel k:
+/// ((k * 3 + s) * 2 + t) * 6 + j.
+pub const fn idx(k: usize, s: usize, t: usize, j: usize) -> usize {
+    ((k * N_LOBES + s) * N_COEFS + t) * N_CTRL_POINTS + j
+}
+
+/// A material: 108 control points in the flat order of [`idx`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct Material {
+    /// A name for reports and files.
+    pub name: String,
+    /// The control points, flat order of [`idx`].
+    pub ctrl: [f64; N_PARAMS],
+}
+
+impl Material {
+    /// A validated material from a slice of exactly 108 numbers.
+    pub fn new(name: impl Into<String>, ctrl: &[f64]) -> Result<Self> {
+        let ctrl: [f64; N_PARAMS] = ctrl.try_into().map_err(|_| {
+            invalid!(
+                "material: {} control points given; a material has exactly {N_PARAMS}",
+                ctrl.len()
+            )
+        })?;
+        let m = Material {
+            name: name.into(),
+            ctrl,
+        };
+        m.validate()?;
+        Ok(m)
+    }
+
+    /// The same lobe in every channel, constant over theta_d: scale m0 and exponent m1 for
+    /// each of the three lobes.
+    pub fn constant(name: impl Into<String>, lobes: [(f64, f64); N_LOBES]) -> Result<Self> {
+        let mut ctrl = [0.0; N_PARAMS];
+        for k in 0..N_CHANNELS {
+            for (s, &(m0, m1)) in lobes.iter().enumerate() {
+                for j in 0..N_CTRL_POINTS {
+                    ctrl[idx(k, s, 0, j)] = m0;
+                    ctrl[idx(k, s, 1, j)] = m1;
+                }
+            }
+        }
+        Material::new(name, &ctrl)
+    }
+
+    /// Checks that every control point is finite, scales are within +-[`MAX_ABS_SCALE`]
+    /// and exponents within [0, [`MAX_EXPONENT`]].
+    pub fn validate(&self) -> Result<()> {
+        for (i, &v) in self.ctrl.iter().enumerate() {
+            let is_exponent = (i / N_CTRL_POINTS) % N_COEFS == 1;
+            let what = if is_exponent { "exponent" } else { "scale" };
+            if !v.is_finite() {
+                return Err(invalid!("material: {what} control point idx {i} is {v}"));
+            }
+            if is_exponent && v < 0.0 {
+                return Err(invalid!(
+                    "material: exponent control point idx {i} is {v}; exponents must be >= 0"
+                ));
+            }
+            if is_exponent && v > MAX_EXPONENT {
+                return Err(invalid!(
+                    "material: exponent control point idx {i} is {v}; exponents must be <= {MAX_EXPONENT}"
+                ));
+            }
+            if !is_exponent && v.abs() > MAX_ABS_SCALE {
+                return Err(invalid!(
+                    "material: scale control point idx {i} is {v}; scales must be within +-{MAX_ABS_SCALE}"
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The 18 coefficients m_{s,t}^k(theta_d), indexed (k * 3 + s) * 2 + t.
+    pub fn coefficients(&self, theta_d: f64) -> [f64; N_PARAMS / N_CTRL_POINTS] {
+        let b = spline_basis(theta_d);
+        let mut out = [0.0; N_PARAMS / N_CTRL_POINTS];
+        for (c, o) in out.iter_mut().enumerate() {
+            *o = (0..N_CTRL_POINTS)
+                .map(|j| b[j] * self.ctrl[c * N_CTRL_POINTS + j])
+                .sum();
+        }
+        out
+    }
+}

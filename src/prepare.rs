@@ -1,0 +1,188 @@
+//! What depends on a texel alone or a pixel alone, computed once per scene on the host in
+//! f64: texel directions, solid angles, radiance x solid angle, and for orthographic cameras
+//! the half vector, theta_d and the 18 spline coefficients; the foreground pixel list.
+//! Both backends start from a [`Prepared`] scene, so the per-pair loops are all they differ in.
+
+use crate::camera::Camera;
+use crate::envmap::Convention;
+use crate::material::N_PARAMS;
+use crate::scene::{BACKGROUND_EPS, Scene};
+use crate::spline::{N_CTRL_POINTS, spline_basis};
+
+/// Coefficients m_{s,t}^k per direction: index (k * 3 + s) * 2 + t.
+pub const N_COEF_VALUES: usize = N_PARAMS / N_CTRL_POINTS;
+
+/// Below this |w_i + w_p| the half vector is undefined (w_i = -w_p); it is then taken as
+/// 0, which makes x = 0 and theta_d = pi/2.
+pub const HALF_VECTOR_EPS: f64 = 1e-6;
+
+/// One environment texel that can receive or give light (d_omega > 0).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TexelRec {
+    /// Texel index r * W_L + c in the map.
+    pub index: usize,
+    /// Direction towards the light.
+    pub w: [f64; 3],
+    /// Solid angle.
+    pub d_omega: f64,
+    /// L^k(i) * d_omega_i.
+    pub ld: [f64; 3],
+    /// Orthographic cameras: the half vector with w_p = (0, 0, 1).
+    pub h: [f64; 3],
+    /// Orthographic cameras: theta_d.
+    pub theta_d: f64,
+    /// Orthographic cameras: the 18 coefficients at theta_d.
+    pub coef: [f64; N_COEF_VALUES],
+}
+
+/// One foreground pixel.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PixelRec {
+    /// Pixel index y * W + x in the image.
+    pub index: usize,
+    /// The normal, as given.
+    pub n: [f64; 3],
+    /// The view direction.
+    pub wp: [f64; 3],
+}
+
+/// A scene reduced to the lists the per-pair loops run over.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Prepared {
+    /// Image columns.
+    pub width: usize,
+    /// Image rows.
+    pub height: usize,
+    /// Env rows.
+    pub env_height: usize,
+    /// Env columns.
+    pub env_width: usize,
+    /// Camera.
+    pub camera: Camera,
+    /// Material control points.
+    pub ctrl: [f64; N_PARAMS],
+    /// Foreground pixels (|n| >= 1e-6), in image order.
+    pub pixels: Vec<PixelRec>,
+    /// Texels with d_omega > 0, in map order: the ones dLoss/dL can be non-zero for.
+    pub texels: Vec<TexelRec>,
+    /// Positions in `texels` of the lit ones (some L^k > 0): the only ones that add to the
+    /// image, dLoss/dn or dLoss/dctrl.
+    pub lit: Vec<usize>,
+}
+
+/// Dot product.
+pub fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// Half vector of w_i and w_p and theta_d = acos(clamp(w_i . h, 0, 1)), guarded where
+/// w_i = -w_p.
+pub fn half_vector(w: [f64; 3], wp: [f64; 3]) -> ([f64; 3], f64) {
+    let s = [w[0] + wp[0], w[1] + wp[1], w[2] + wp[2]];
+    let len = dot(s, s).sqrt();
+    let h = if len < HALF_VECTOR_EPS {
+        [0.0; 3]
+    } else {
+        [s[0] / len, s[1] / len, s[2] / len]
+    };
+    (h, dot(w, h).clamp(0.0, 1.0).acos())
+}
+
+/// The 18 coefficients at theta_d: m[(k * 3 + s) * 2 + t] = sum_j B_j ctrl[idx(k, s, t, j)].
+pub fn coefficients(ctrl: &[f64; N_PARAMS], theta_d: f64) -> [f64; N_COEF_VALUES] {
+    let b = spline_basis(theta_d);
+    let mut m = [0.0; N_COEF_VALUES];
+    for (c, mc) in m.iter_mut().enumerate() {
+        for (j, bj) in b.iter().enumerate() {
+            *mc += bj * ctrl[c * N_CTRL_POINTS + j];
+        }
+    }
+    m
+}
+
+impl Prepared {
+    /// Prepares a validated scene.
+    pub fn new(scene: &Scene) -> Self {
+        let to64 = |v: &[f32; 3]| [v[0] as f64, v[1] as f64, v[2] as f64];
+        let normals: Vec<[f64; 3]> = scene.normals.normals.iter().map(to64).collect();
+        let env: Vec<[f64; 3]> = scene.env.texels.iter().map(to64).collect();
+        Prepared::from_parts(
+            scene.normals.width,
+            scene.normals.height,
+            &normals,
+            scene.env.height,
+            scene.env.width,
+            scene.env.convention,
+            &env,
+            &scene.material.ctrl,
+            scene.camera,
+        )
+    }
+
+    /// Prepares a scene given as raw f64 arrays (used by gradient checks, which perturb
+    /// inputs below f32 resolution). Inputs are assumed valid.
+    #[expect(clippy::too_many_arguments, reason = "the parts of a scene")]
+    pub fn from_parts(
+        width: usize,
+        height: usize,
+        normals: &[[f64; 3]],
+        env_height: usize,
+        env_width: usize,
+        convention: Convention,
+        env: &[[f64; 3]],
+        ctrl: &[f64; N_PARAMS],
+        camera: Camera,
+    ) -> Self {
+        let ortho_wp = [0.0, 0.0, 1.0];
+        let mut texels = Vec::with_capacity(env_height * env_width);
+        let mut lit = Vec::new();
+        for r in 0..env_height {
+            for c in 0..env_width {
+                let (w, d_omega) = convention.texel(r, c, env_height, env_width);
+                if d_omega <= 0.0 {
+                    continue;
+                }
+                let index = r * env_width + c;
+                let l = env[index];
+                let ld = [l[0] * d_omega, l[1] * d_omega, l[2] * d_omega];
+                let (h, theta_d) = half_vector(w, ortho_wp);
+                let coef = if camera.is_orthographic() {
+                    coefficients(ctrl, theta_d)
+                } else {
+                    [0.0; N_COEF_VALUES]
+                };
+                if ld.iter().any(|&v| v != 0.0) {
+                    lit.push(texels.len());
+                }
+                texels.push(TexelRec {
+                    index,
+                    w,
+                    d_omega,
+                    ld,
+                    h,
+                    theta_d,
+                    coef,
+                });
+            }
+        }
+        let mut pixels = Vec::new();
+        for (index, &n) in normals.iter().enumerate() {
+            if dot(n, n) < BACKGROUND_EPS * BACKGROUND_EPS {
+                continue;
+            }
+            let wp = camera.view_dir(index % width, index / width, width, height);
+            pixels.push(PixelRec { index, n, wp });
+        }
+        Prepared {
+            width,
+            height,
+            env_height,
+            env_width,
+            camera,
+            ctrl: *ctrl,
+            pixels,
+            texels,
+            lit,
+        }
+    }
+}

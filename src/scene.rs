@@ -1,0 +1,242 @@
+//! Scenes and batches: per-pixel normals, an environment map, a material and a camera;
+//! and what the layer returns (images, gradients).
+
+use crate::camera::Camera;
+use crate::envmap::EnvMap;
+use crate::error::{Error, Result, invalid};
+use crate::material::{Material, N_PARAMS};
+
+/// A normal whose length is below this is background: it renders 0 and gets no gradient.
+pub const BACKGROUND_EPS: f64 = 1e-6;
+
+/// A `width` x `height` map of normals in camera coordinates, row 0 at the top. The layer
+/// uses them exactly as given (not re-normalised); loaders normalise.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NormalMap {
+    /// Columns.
+    pub width: usize,
+    /// Rows.
+    pub height: usize,
+    /// (n.x, n.y, n.z) per pixel, row-major.
+    pub normals: Vec<[f32; 3]>,
+}
+
+impl NormalMap {
+    /// A validated normal map: the right number of pixels, every component finite.
+    pub fn new(width: usize, height: usize, normals: Vec<[f32; 3]>) -> Result<Self> {
+        let m = NormalMap {
+            width,
+            height,
+            normals,
+        };
+        m.validate()?;
+        Ok(m)
+    }
+
+    /// A unit sphere filling an `n` x `n` image, background outside the disc.
+    pub fn sphere(n: usize) -> Self {
+        let mut normals = Vec::with_capacity(n * n);
+        for y in 0..n {
+            for x in 0..n {
+                let u = (x as f64 + 0.5) / n as f64 * 2.0 - 1.0;
+                let v = 1.0 - (y as f64 + 0.5) / n as f64 * 2.0;
+                let r2 = u * u + v * v;
+                normals.push(if r2 < 1.0 {
+                    [u as f32, v as f32, (1.0 - r2).sqrt() as f32]
+                } else {
+                    [0.0; 3]
+                });
+            }
+        }
+        NormalMap {
+            width: n,
+            height: n,
+            normals,
+        }
+    }
+
+    /// Whether pixel `i` is background (|n| < 1e-6).
+    pub fn is_background(&self, i: usize) -> bool {
+        let n = self.normals[i];
+        let len2: f64 = n.iter().map(|&v| (v as f64) * (v as f64)).sum();
+        len2 < BACKGROUND_EPS * BACKGROUND_EPS
+    }
+
+    /// Checks the size and that every component is finite.
+    pub fn validate(&self) -> Result<()> {
+        if self.width == 0 || self.height == 0 {
+            return Err(invalid!("normals: size {}x{} is empty", self.width, self.height));
+        }
+        if self.normals.len() != self.width * self.height {
+            return Err(invalid!(
+                "normals: {} pixels given for a {}x{} map",
+                self.normals.len(),
+                self.width,
+                self.height
+            ));
+        }
+        for (i, n) in self.normals.iter().enumerate() {
+            if let Some(v) = n.iter().find(|v| !v.is_finite()) {
+                let what = if v.is_nan() { "NaN" } else { "infinite" };
+                return Err(invalid!(
+                    "normals: pixel ({}, {}) is {what}",
+                    i % self.width,
+                    i / self.width
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// One scene: what one image is made of.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Scene {
+    /// Per-pixel normals.
+    pub normals: NormalMap,
+    /// The lighting.
+    pub env: EnvMap,
+    /// The material.
+    pub material: Material,
+    /// The camera.
+    pub camera: Camera,
+}
+
+impl Scene {
+    /// Checks every part.
+    pub fn validate(&self) -> Result<()> {
+        self.normals.validate()?;
+        self.env.validate()?;
+        self.material.validate()?;
+        self.camera.validate()
+    }
+}
+
+/// B scenes rendered in one call. All share the image size, the environment-map size and
+/// convention, and the camera; each has its own normals, lighting and material.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Batch {
+    scenes: Vec<Scene>,
+}
+
+impl Batch {
+    /// A validated batch of at least one scene.
+    pub fn new(scenes: Vec<Scene>) -> Result<Self> {
+        let Some(first) = scenes.first() else {
+            return Err(Error::Batch("a batch needs at least one scene".into()));
+        };
+        for (b, s) in scenes.iter().enumerate() {
+            s.validate()
+                .map_err(|e| if scenes.len() > 1 { invalid!("scene {b}: {e}") } else { e })?;
+            let same = s.normals.width == first.normals.width
+                && s.normals.height == first.normals.height
+                && s.env.width == first.env.width
+                && s.env.height == first.env.height
+                && s.env.convention == first.env.convention
+                && s.camera == first.camera;
+            if !same {
+                return Err(Error::Batch(format!(
+                    "scene {b} differs from scene 0 in image size, env size, convention or camera \
+                     ({}x{} image, {}x{} {} env, {:?} vs {}x{} image, {}x{} {} env, {:?})",
+                    s.normals.width,
+                    s.normals.height,
+                    s.env.height,
+                    s.env.width,
+                    s.env.convention.name(),
+                    s.camera,
+                    first.normals.width,
+                    first.normals.height,
+                    first.env.height,
+                    first.env.width,
+                    first.env.convention.name(),
+                    first.camera
+                )));
+            }
+        }
+        Ok(Batch { scenes })
+    }
+
+    /// A batch of one scene.
+    pub fn single(scene: Scene) -> Result<Self> {
+        Batch::new(vec![scene])
+    }
+
+    /// The scenes.
+    pub fn scenes(&self) -> &[Scene] {
+        &self.scenes
+    }
+
+    /// Image (width, height), shared by all scenes.
+    pub fn image_size(&self) -> (usize, usize) {
+        (self.scenes[0].normals.width, self.scenes[0].normals.height)
+    }
+
+    /// Checks that `upstream` holds one image per scene of the batch's image size, all finite.
+    pub fn check_upstream(&self, upstream: &[Image]) -> Result<()> {
+        if upstream.len() != self.scenes.len() {
+            return Err(invalid!(
+                "upstream: {} images given for a batch of {}",
+                upstream.len(),
+                self.scenes.len()
+            ));
+        }
+        let (w, h) = self.image_size();
+        for (b, g) in upstream.iter().enumerate() {
+            if g.width != w || g.height != h || g.pixels.len() != w * h {
+                return Err(invalid!(
+                    "upstream: image {b} is {}x{} ({} pixels); the batch renders {w}x{h}",
+                    g.width,
+                    g.height,
+                    g.pixels.len()
+                ));
+            }
+            if let Some(i) = g.pixels.iter().position(|p| p.iter().any(|v| !v.is_finite())) {
+                return Err(invalid!(
+                    "upstream: image {b} pixel ({}, {}) is not finite",
+                    i % w,
+                    i / w
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A linear RGB image, row-major, row 0 at the top.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Image {
+    /// Columns.
+    pub width: usize,
+    /// Rows.
+    pub height: usize,
+    /// RGB per pixel.
+    pub pixels: Vec<[f32; 3]>,
+}
+
+impl Image {
+    /// An all-zero image.
+    pub fn zeros(width: usize, height: usize) -> Self {
+        Image {
+            width,
+            height,
+            pixels: vec![[0.0; 3]; width * height],
+        }
+    }
+
+    /// The largest channel value.
+    pub fn max_value(&self) -> f32 {
+        self.pixels.iter().flatten().fold(0.0f32, |a, &b| a.max(b))
+    }
+}
+
+/// The layer's vector-Jacobian product for one scene: dLoss/d(inputs) for an upstream
+/// dLoss/dImage.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Gradients {
+    /// dLoss/dL, one RGB triple per env texel, the env map's layout.
+    pub d_env: Vec<[f32; 3]>,
+    /// dLoss/dn, one triple per pixel, the normal map's layout.
+    pub d_normals: Vec<[f32; 3]>,
+    /// dLoss/dctrl, the material's flat layout.
+    pub d_ctrl: [f32; N_PARAMS],
+}
