@@ -87,6 +87,8 @@ fn spline_basis(t_in: f32) -> array<f32, 6> {
 }
 
 // Half vector of w and wp (xyz) and theta_d (w); h = 0 where w = -wp.
+// theta_d = acos(w.h) is computed as atan2(|w - wp|, |w + wp|), the same angle (h bisects
+// w and wp), because acos near 1 loses most of its digits in f32.
 fn half_vector(w: vec3<f32>, wp: vec3<f32>) -> vec4<f32> {
     let s = w + wp;
     let len = length(s);
@@ -94,7 +96,7 @@ fn half_vector(w: vec3<f32>, wp: vec3<f32>) -> vec4<f32> {
     if len >= HALF_VECTOR_EPS {
         h = s / len;
     }
-    return vec4<f32>(h, acos(clamp(dot(w, h), 0.0, 1.0)));
+    return vec4<f32>(h, atan2(length(w - wp), len));
 }
 
 // The coefficient vector (over lobes) of channel k, coefficient t at the basis b.

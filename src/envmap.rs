@@ -49,7 +49,11 @@ impl Convention {
                 (theta, phi, theta.sin())
             }
         };
-        let dir = [phi.cos() * theta.sin(), theta.cos(), phi.sin() * theta.sin()];
+        let dir = [
+            phi.cos() * theta.sin(),
+            theta.cos(),
+            phi.sin() * theta.sin(),
+        ];
         (dir, d_omega)
     }
 }
@@ -101,7 +105,12 @@ impl EnvMap {
     }
 
     /// The same radiance in every direction.
-    pub fn constant(height: usize, width: usize, convention: Convention, rgb: [f32; 3]) -> Result<Self> {
+    pub fn constant(
+        height: usize,
+        width: usize,
+        convention: Convention,
+        rgb: [f32; 3],
+    ) -> Result<Self> {
         EnvMap::new(height, width, convention, vec![rgb; height * width])
     }
 

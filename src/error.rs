@@ -53,7 +53,10 @@ impl Error {
     /// Whether the error is the user's input (exit code 2) rather than a runtime failure
     /// (exit code 1).
     pub fn is_input_error(&self) -> bool {
-        matches!(self, Error::Invalid(_) | Error::Batch(_) | Error::File { .. })
+        matches!(
+            self,
+            Error::Invalid(_) | Error::Batch(_) | Error::File { .. }
+        )
     }
 }
 

@@ -21,11 +21,16 @@
 //! # Ok::<(), matedit::Error>(())
 //! ```
 
+#![allow(
+    clippy::needless_range_loop,
+    reason = "loops mirror the WGSL shaders index for index"
+)]
+
 pub mod camera;
 pub mod cpu;
+pub mod defaults;
 pub mod envmap;
 pub mod error;
-pub mod defaults;
 pub mod gpu;
 pub mod io;
 pub mod material;

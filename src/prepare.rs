@@ -75,17 +75,20 @@ pub fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
-/// Half vector of w_i and w_p and theta_d = acos(clamp(w_i . h, 0, 1)), guarded where
-/// w_i = -w_p.
+/// Half vector of w_i and w_p, guarded where w_i = -w_p, and theta_d = acos(clamp(w_i . h,
+/// 0, 1)), computed as atan2(|w_i - w_p|, |w_i + w_p|): the same angle for unit vectors
+/// (h bisects them), without acos's loss of digits near 1. Mirrors `half_vector` in
+/// shaders/common.wgsl.
 pub fn half_vector(w: [f64; 3], wp: [f64; 3]) -> ([f64; 3], f64) {
     let s = [w[0] + wp[0], w[1] + wp[1], w[2] + wp[2]];
+    let d = [w[0] - wp[0], w[1] - wp[1], w[2] - wp[2]];
     let len = dot(s, s).sqrt();
     let h = if len < HALF_VECTOR_EPS {
         [0.0; 3]
     } else {
         [s[0] / len, s[1] / len, s[2] / len]
     };
-    (h, dot(w, h).clamp(0.0, 1.0).acos())
+    (h, dot(d, d).sqrt().atan2(len))
 }
 
 /// The 18 coefficients at theta_d: m[(k * 3 + s) * 2 + t] = sum_j B_j ctrl[idx(k, s, t, j)].

@@ -65,7 +65,11 @@ impl NormalMap {
     /// Checks the size and that every component is finite.
     pub fn validate(&self) -> Result<()> {
         if self.width == 0 || self.height == 0 {
-            return Err(invalid!("normals: size {}x{} is empty", self.width, self.height));
+            return Err(invalid!(
+                "normals: size {}x{} is empty",
+                self.width,
+                self.height
+            ));
         }
         if self.normals.len() != self.width * self.height {
             return Err(invalid!(
@@ -126,8 +130,13 @@ impl Batch {
             return Err(Error::Batch("a batch needs at least one scene".into()));
         };
         for (b, s) in scenes.iter().enumerate() {
-            s.validate()
-                .map_err(|e| if scenes.len() > 1 { invalid!("scene {b}: {e}") } else { e })?;
+            s.validate().map_err(|e| {
+                if scenes.len() > 1 {
+                    invalid!("scene {b}: {e}")
+                } else {
+                    e
+                }
+            })?;
             let same = s.normals.width == first.normals.width
                 && s.normals.height == first.normals.height
                 && s.env.width == first.env.width
@@ -190,7 +199,11 @@ impl Batch {
                     g.pixels.len()
                 ));
             }
-            if let Some(i) = g.pixels.iter().position(|p| p.iter().any(|v| !v.is_finite())) {
+            if let Some(i) = g
+                .pixels
+                .iter()
+                .position(|p| p.iter().any(|v| !v.is_finite()))
+            {
                 return Err(invalid!(
                     "upstream: image {b} pixel ({}, {}) is not finite",
                     i % w,

@@ -63,7 +63,10 @@ mod tests {
             let b = spline_basis(t);
             let s: f64 = b.iter().sum();
             assert!((s - 1.0).abs() < 1e-14, "sum {s} at t = {t}");
-            assert!(b.iter().all(|&v| v >= 0.0), "negative basis at t = {t}: {b:?}");
+            assert!(
+                b.iter().all(|&v| v >= 0.0),
+                "negative basis at t = {t}: {b:?}"
+            );
         }
         assert_eq!(spline_basis(FRAC_PI_2)[5], 1.0);
         assert_eq!(spline_basis(0.0)[0], 1.0);

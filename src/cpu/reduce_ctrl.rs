@@ -7,7 +7,6 @@ use crate::material::N_PARAMS;
 const WG: usize = 64;
 
 /// Sums `shares` per control point: 64 strided partial sums, then a tree.
-#[expect(clippy::needless_range_loop, reason = "mirrors the shader")]
 pub fn reduce_ctrl(shares: &[[f64; N_PARAMS]]) -> [f64; N_PARAMS] {
     let mut out = [0.0; N_PARAMS];
     for col in 0..N_PARAMS {

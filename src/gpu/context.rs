@@ -1,0 +1,87 @@
+//! The adapter and device: headless, a hardware GPU first, honouring WGPU_BACKEND and
+//! WGPU_ADAPTER_NAME.
+
+use crate::error::{Error, Result};
+
+/// An open device and what was chosen.
+pub struct GpuContext {
+    /// The device.
+    pub device: wgpu::Device,
+    /// Its queue.
+    pub queue: wgpu::Queue,
+    /// The adapter's description.
+    pub info: wgpu::AdapterInfo,
+    /// The limits the device was opened with (the adapter's own).
+    pub limits: wgpu::Limits,
+}
+
+fn rank(t: wgpu::DeviceType) -> u32 {
+    match t {
+        wgpu::DeviceType::DiscreteGpu => 0,
+        wgpu::DeviceType::IntegratedGpu => 1,
+        wgpu::DeviceType::VirtualGpu => 2,
+        wgpu::DeviceType::Other => 3,
+        wgpu::DeviceType::Cpu => 4,
+    }
+}
+
+impl GpuContext {
+    /// Opens the best adapter: discrete, then integrated, virtual, other, and a software
+    /// one (lavapipe) last. `WGPU_BACKEND` (e.g. `vulkan`) limits the backends and
+    /// `WGPU_ADAPTER_NAME` picks adapters whose name contains it (case-insensitive).
+    pub fn new() -> Result<Self> {
+        let desc = wgpu::InstanceDescriptor::new_without_display_handle().with_env();
+        let backends = desc.backends;
+        let instance = wgpu::Instance::new(desc);
+        let mut adapters = pollster::block_on(instance.enumerate_adapters(backends));
+        let name_filter = std::env::var("WGPU_ADAPTER_NAME").ok();
+        if let Some(f) = &name_filter {
+            let f = f.to_lowercase();
+            adapters.retain(|a| a.get_info().name.to_lowercase().contains(&f));
+        }
+        adapters.sort_by_key(|a| rank(a.get_info().device_type));
+        let Some(adapter) = adapters.into_iter().next() else {
+            let mut detail = String::new();
+            if let Ok(b) = std::env::var("WGPU_BACKEND") {
+                detail += &format!(" with WGPU_BACKEND={b}");
+            }
+            if let Some(n) = name_filter {
+                detail += &format!(" with WGPU_ADAPTER_NAME={n}");
+            }
+            return Err(Error::NoAdapter { detail });
+        };
+        let info = adapter.get_info();
+        let limits = adapter.limits();
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("matedit"),
+            required_features: wgpu::Features::empty(),
+            required_limits: limits.clone(),
+            experimental_features: Default::default(),
+            memory_hints: wgpu::MemoryHints::Performance,
+            trace: wgpu::Trace::Off,
+        }))
+        .map_err(|e| Error::Gpu(format!("requesting a device on {}: {e}", info.name)))?;
+        Ok(GpuContext {
+            device,
+            queue,
+            info,
+            limits,
+        })
+    }
+
+    /// Whether the adapter is a software rasteriser (lavapipe, WARP, SwiftShader).
+    pub fn is_software(&self) -> bool {
+        self.info.device_type == wgpu::DeviceType::Cpu
+    }
+
+    /// "gpu: NAME (BACKEND, TYPE)".
+    pub fn describe(&self) -> String {
+        format!(
+            "gpu: {} ({:?}, {:?}{})",
+            self.info.name,
+            self.info.backend,
+            self.info.device_type,
+            if self.is_software() { ", software" } else { "" }
+        )
+    }
+}

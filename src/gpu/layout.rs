@@ -1,0 +1,130 @@
+//! The structs shared with the shaders, byte for byte. Kept in sync with the structs of
+//! shaders/common.wgsl; tests/shaders.rs compares every member offset and size with naga's.
+
+use bytemuck::{Pod, Zeroable};
+
+use crate::material::{N_PARAMS, idx};
+use crate::prepare::{PixelRec, TexelRec};
+
+/// Texels per uniform chunk (`TEXEL_CHUNK` in common.wgsl).
+pub const TEXEL_CHUNK: usize = 448;
+/// Pixels per uniform chunk (`PIXEL_CHUNK` in common.wgsl).
+pub const PIXEL_CHUNK: usize = 1344;
+/// Threads per workgroup (`WG` in common.wgsl).
+pub const WG: usize = 64;
+/// Bytes of one uniform chunk (of texels or of pixels): under 64 KiB, a multiple of 256.
+pub const CHUNK_BYTES: u64 = (TEXEL_CHUNK * size_of::<Texel>()) as u64;
+const _: () = assert!(CHUNK_BYTES == (PIXEL_CHUNK * size_of::<Pixel>()) as u64);
+const _: () = assert!(CHUNK_BYTES <= 65536 && CHUNK_BYTES.is_multiple_of(256));
+
+/// One dispatch's parameters (`Params` in common.wgsl).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+pub struct Params {
+    /// Pixels in the pixel list or the uniform pixel chunk.
+    pub n_pixels: u32,
+    /// Texels in the uniform texel chunk or the texel list.
+    pub n_texels: u32,
+    /// 1 on the first chunk of a sum: write instead of add.
+    pub first: u32,
+    /// 1 for a perspective camera.
+    pub perspective: u32,
+    /// cc[(k * 2 + t) * 6 + j] = the control points j of coefficient t of channel k's three lobes.
+    pub cc: [[f32; 4]; 36],
+}
+const _: () = assert!(size_of::<Params>().is_multiple_of(16));
+
+/// Bytes between two dispatches' [`Params`] in the params buffer: a multiple of 256, the
+/// largest uniform offset alignment wgpu allows.
+pub const PARAMS_STRIDE: u64 = size_of::<Params>().next_multiple_of(256) as u64;
+
+impl Params {
+    /// Params with the material's control points rearranged for `pair_coef`.
+    pub fn new(ctrl: &[f64; N_PARAMS], perspective: bool) -> Self {
+        let mut cc = [[0.0f32; 4]; 36];
+        for k in 0..3 {
+            for t in 0..2 {
+                for j in 0..6 {
+                    for s in 0..3 {
+                        cc[(k * 2 + t) * 6 + j][s] = ctrl[idx(k, s, t, j)] as f32;
+                    }
+                }
+            }
+        }
+        Params {
+            n_pixels: 0,
+            n_texels: 0,
+            first: 0,
+            perspective: perspective as u32,
+            cc,
+        }
+    }
+}
+
+/// One environment texel (`Texel` in common.wgsl).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+pub struct Texel {
+    /// xyz: direction; w: solid angle.
+    pub w: [f32; 4],
+    /// xyz: orthographic half vector; w: theta_d.
+    pub h: [f32; 4],
+    /// xyz: L^k d_omega.
+    pub ld: [f32; 4],
+    /// coef[k * 2 + t] = (m_{0,t}^k, m_{1,t}^k, m_{2,t}^k, 0).
+    pub coef: [[f32; 4]; 6],
+}
+const _: () = assert!(size_of::<Texel>().is_multiple_of(16));
+
+impl From<&TexelRec> for Texel {
+    fn from(t: &TexelRec) -> Self {
+        let mut coef = [[0.0f32; 4]; 6];
+        for k in 0..3 {
+            for tt in 0..2 {
+                for s in 0..3 {
+                    coef[k * 2 + tt][s] = t.coef[(k * 3 + s) * 2 + tt] as f32;
+                }
+            }
+        }
+        Texel {
+            w: [
+                t.w[0] as f32,
+                t.w[1] as f32,
+                t.w[2] as f32,
+                t.d_omega as f32,
+            ],
+            h: [
+                t.h[0] as f32,
+                t.h[1] as f32,
+                t.h[2] as f32,
+                t.theta_d as f32,
+            ],
+            ld: [t.ld[0] as f32, t.ld[1] as f32, t.ld[2] as f32, 0.0],
+            coef,
+        }
+    }
+}
+
+/// One foreground pixel (`Pixel` in common.wgsl).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+pub struct Pixel {
+    /// xyz: the normal.
+    pub n: [f32; 4],
+    /// xyz: the view direction.
+    pub wp: [f32; 4],
+    /// xyz: the upstream gradient.
+    pub g: [f32; 4],
+}
+const _: () = assert!(size_of::<Pixel>().is_multiple_of(16));
+
+impl Pixel {
+    /// The GPU record of a pixel with upstream gradient `g`.
+    pub fn new(p: &PixelRec, g: [f32; 3]) -> Self {
+        Pixel {
+            n: [p.n[0] as f32, p.n[1] as f32, p.n[2] as f32, 0.0],
+            wp: [p.wp[0] as f32, p.wp[1] as f32, p.wp[2] as f32, 0.0],
+            g: [g[0], g[1], g[2], 0.0],
+        }
+    }
+}

@@ -1,0 +1,149 @@
+//! The four compute pipelines, built once per renderer. Each pass's WGSL is common.wgsl
+//! followed by the pass's own file, compiled into the binary.
+
+use std::num::NonZeroU64;
+
+use super::layout::{CHUNK_BYTES, Params};
+
+/// shaders/common.wgsl.
+pub const COMMON_WGSL: &str = include_str!("../../shaders/common.wgsl");
+
+/// The passes, each one entry point of the same name in shaders/NAME.wgsl.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Pass {
+    /// The image.
+    Forward,
+    /// dLoss/dn per pixel.
+    BackwardNormal,
+    /// dLoss/dL and the dctrl shares per texel.
+    BackwardTexel,
+    /// dLoss/dctrl from the shares.
+    ReduceCtrl,
+}
+
+impl Pass {
+    /// Every pass.
+    pub const ALL: [Pass; 4] = [
+        Pass::Forward,
+        Pass::BackwardNormal,
+        Pass::BackwardTexel,
+        Pass::ReduceCtrl,
+    ];
+
+    /// The entry point (and file stem).
+    pub fn name(self) -> &'static str {
+        match self {
+            Pass::Forward => "forward",
+            Pass::BackwardNormal => "backward_normal",
+            Pass::BackwardTexel => "backward_texel",
+            Pass::ReduceCtrl => "reduce_ctrl",
+        }
+    }
+
+    /// The pass's WGSL module as assembled: common.wgsl, then the pass.
+    pub fn source(self) -> String {
+        let own = match self {
+            Pass::Forward => include_str!("../../shaders/forward.wgsl"),
+            Pass::BackwardNormal => include_str!("../../shaders/backward_normal.wgsl"),
+            Pass::BackwardTexel => include_str!("../../shaders/backward_texel.wgsl"),
+            Pass::ReduceCtrl => include_str!("../../shaders/reduce_ctrl.wgsl"),
+        };
+        format!("{COMMON_WGSL}\n{own}")
+    }
+
+    /// The bindings after `params`: (uniform chunk?, storage read-only count, read-write count).
+    fn bindings(self) -> (bool, u32, u32) {
+        match self {
+            Pass::Forward | Pass::BackwardNormal => (true, 1, 1),
+            Pass::BackwardTexel => (true, 1, 2),
+            Pass::ReduceCtrl => (false, 1, 1),
+        }
+    }
+}
+
+/// A pass's pipeline and bind group layout.
+pub struct Pipeline {
+    /// The pipeline.
+    pub pipeline: wgpu::ComputePipeline,
+    /// Its group 0 layout.
+    pub layout: wgpu::BindGroupLayout,
+}
+
+fn buffer_entry(
+    binding: u32,
+    ty: wgpu::BufferBindingType,
+    dynamic: bool,
+    min: u64,
+) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty,
+            has_dynamic_offset: dynamic,
+            min_binding_size: NonZeroU64::new(min),
+        },
+        count: None,
+    }
+}
+
+impl Pipeline {
+    /// Compiles `pass` on `device`.
+    pub fn new(device: &wgpu::Device, pass: Pass) -> Self {
+        let (chunk, ro, rw) = pass.bindings();
+        let mut entries = vec![buffer_entry(
+            0,
+            wgpu::BufferBindingType::Uniform,
+            true,
+            size_of::<Params>() as u64,
+        )];
+        if chunk {
+            entries.push(buffer_entry(
+                1,
+                wgpu::BufferBindingType::Uniform,
+                true,
+                CHUNK_BYTES,
+            ));
+        }
+        for _ in 0..ro {
+            let b = entries.len() as u32;
+            entries.push(buffer_entry(
+                b,
+                wgpu::BufferBindingType::Storage { read_only: true },
+                false,
+                0,
+            ));
+        }
+        for _ in 0..rw {
+            let b = entries.len() as u32;
+            entries.push(buffer_entry(
+                b,
+                wgpu::BufferBindingType::Storage { read_only: false },
+                false,
+                0,
+            ));
+        }
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some(pass.name()),
+            entries: &entries,
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some(pass.name()),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some(pass.name()),
+            source: wgpu::ShaderSource::Wgsl(pass.source().into()),
+        });
+        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(pass.name()),
+            layout: Some(&pipeline_layout),
+            module: &module,
+            entry_point: Some(pass.name()),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        Pipeline { pipeline, layout }
+    }
+}

@@ -1,0 +1,279 @@
+//! The GPU path against the f64 CPU reference on seeded random scenes (lavapipe in CI),
+//! determinism of the GPU backward pass, and analytic values on both backends.
+//!
+//! Tolerance: max abs error <= 1e-4 of the largest value of each output. The f32 error
+//! floor is about 1e-5 of the largest value (x^m1 with m1 up to 60 multiplies the ~6e-8
+//! error of x by up to 60, and sums over 8192 texels add ~1e-6), so 1e-4 leaves 10x room
+//! while still catching any wrong term.
+
+mod common;
+
+use common::{Rng, assert_close, flat32, flat64, gpu, random_scene};
+use matedit::prepare::Prepared;
+use matedit::{Backend, Batch, Camera, Convention, EnvMap, Image, Material, NormalMap, Scene, cpu};
+
+const TOL: f64 = 1e-4;
+
+fn max_abs(v: &[f64]) -> f64 {
+    v.iter().fold(0.0f64, |a, b| a.max(b.abs()))
+}
+
+fn upstream_for(batch: &Batch, seed: u64) -> Vec<Image> {
+    let mut rng = Rng::new(seed);
+    let (w, h) = batch.image_size();
+    batch
+        .scenes()
+        .iter()
+        .map(|_| Image {
+            width: w,
+            height: h,
+            pixels: (0..w * h)
+                .map(|_| [0; 3].map(|_: i32| rng.uniform(-1.0, 1.0) as f32))
+                .collect(),
+        })
+        .collect()
+}
+
+/// Forward and backward of `batch` on the GPU against the CPU reference.
+fn compare(test: &str, batch: &Batch) {
+    let Some(g) = gpu(test) else { return };
+    let images = g.render(batch).expect("gpu render");
+    let up = upstream_for(batch, 99);
+    let grads = g.backward(batch, &up).expect("gpu backward");
+    for (b, scene) in batch.scenes().iter().enumerate() {
+        let prep = Prepared::new(scene);
+        let want = flat64(&cpu::forward(&prep));
+        let got = flat32(&images[b].pixels);
+        assert!(max_abs(&want) > 0.0, "{test}: the image is black");
+        assert_close(
+            &format!("{test} scene {b} image"),
+            &got,
+            &want,
+            TOL * max_abs(&want),
+            0.0,
+        );
+
+        let gu: Vec<[f64; 3]> = up[b].pixels.iter().map(|p| p.map(f64::from)).collect();
+        let r = cpu::backward(&prep, &gu);
+        for (name, got, want) in [
+            ("dL", flat32(&grads[b].d_env), flat64(&r.d_env)),
+            ("dn", flat32(&grads[b].d_normals), flat64(&r.d_normals)),
+            (
+                "dctrl",
+                grads[b].d_ctrl.iter().map(|&v| v as f64).collect(),
+                r.d_ctrl.to_vec(),
+            ),
+        ] {
+            assert!(max_abs(&want) > 0.0, "{test}: {name} is all zero");
+            assert_close(
+                &format!("{test} scene {b} {name}"),
+                &got,
+                &want,
+                TOL * max_abs(&want),
+                0.0,
+            );
+        }
+    }
+}
+
+#[test]
+fn forward_backward_64x128_env_equirect() {
+    let mut rng = Rng::new(11);
+    let s = random_scene(
+        &mut rng,
+        12,
+        10,
+        64,
+        128,
+        Convention::Equirect,
+        Camera::Orthographic,
+    );
+    compare("64x128 equirect", &Batch::single(s).unwrap());
+}
+
+#[test]
+fn forward_backward_non_square_paper() {
+    let mut rng = Rng::new(12);
+    let s = random_scene(
+        &mut rng,
+        13,
+        7,
+        16,
+        32,
+        Convention::Paper,
+        Camera::Orthographic,
+    );
+    compare("13x7 paper", &Batch::single(s).unwrap());
+}
+
+#[test]
+fn forward_backward_batch_of_3() {
+    let mut rng = Rng::new(13);
+    let scenes = (0..3)
+        .map(|_| {
+            random_scene(
+                &mut rng,
+                9,
+                11,
+                16,
+                32,
+                Convention::Equirect,
+                Camera::Orthographic,
+            )
+        })
+        .collect();
+    compare("batch of 3", &Batch::new(scenes).unwrap());
+}
+
+#[test]
+fn forward_backward_perspective_both_conventions() {
+    for (seed, conv) in [(14, Convention::Equirect), (15, Convention::Paper)] {
+        let mut rng = Rng::new(seed);
+        let s = random_scene(
+            &mut rng,
+            10,
+            8,
+            16,
+            32,
+            conv,
+            Camera::Perspective { fov_y_deg: 60.0 },
+        );
+        compare(&format!("perspective {conv:?}"), &Batch::single(s).unwrap());
+    }
+}
+
+#[test]
+fn forward_splits_more_pixels_than_one_chunk_of_texels() {
+    // more lit texels than one uniform chunk (448) and a sphere: chunked sums must agree
+    let mut rng = Rng::new(16);
+    let mut s = random_scene(
+        &mut rng,
+        4,
+        4,
+        32,
+        64,
+        Convention::Equirect,
+        Camera::Orthographic,
+    );
+    s.normals = NormalMap::sphere(20);
+    compare("sphere 20 env 32x64", &Batch::single(s).unwrap());
+}
+
+#[test]
+fn backward_is_deterministic() {
+    let Some(g) = gpu("backward_is_deterministic") else {
+        return;
+    };
+    let mut rng = Rng::new(17);
+    let s = random_scene(
+        &mut rng,
+        16,
+        16,
+        32,
+        64,
+        Convention::Equirect,
+        Camera::Orthographic,
+    );
+    let batch = Batch::single(s).unwrap();
+    let up = upstream_for(&batch, 5);
+    let a = g.backward(&batch, &up).unwrap();
+    let b = g.backward(&batch, &up).unwrap();
+    let bits = |v: &matedit::Gradients| {
+        v.d_env
+            .iter()
+            .flatten()
+            .chain(v.d_normals.iter().flatten())
+            .chain(v.d_ctrl.iter())
+            .map(|x| x.to_bits())
+            .collect::<Vec<u32>>()
+    };
+    assert_eq!(bits(&a[0]), bits(&b[0]), "two GPU backward runs differ");
+    let fa = g.render(&batch).unwrap();
+    let fb = g.render(&batch).unwrap();
+    assert_eq!(fa, fb, "two GPU forward runs differ");
+}
+
+/// Constant light L = 1 and one lobe of exponent 0: f = e^m0 - 1 everywhere, so
+/// I = (e^m0 - 1) sum_i max(0, n.w_i) d_omega_i, which is pi (e^m0 - 1) in the limit;
+/// within 0.1% at 64 x 128 equirect.
+fn constant_light_scene() -> (Scene, f64) {
+    let m0: f64 = 0.7;
+    let scene = Scene {
+        normals: NormalMap::new(1, 1, vec![[0.0, 0.0, 1.0]]).unwrap(),
+        env: EnvMap::constant(64, 128, Convention::Equirect, [1.0; 3]).unwrap(),
+        material: Material::constant("flat", [(m0, 0.0), (0.0, 0.0), (0.0, 0.0)]).unwrap(),
+        camera: Camera::Orthographic,
+    };
+    (scene, std::f64::consts::PI * m0.exp_m1())
+}
+
+#[test]
+fn analytic_constant_light_exponent_zero_cpu() {
+    let (scene, want) = constant_light_scene();
+    let img = cpu::forward(&Prepared::new(&scene));
+    assert_close("I (cpu)", &img[0], &[want; 3], 0.0, 1e-3);
+}
+
+#[test]
+fn analytic_constant_light_exponent_zero_gpu() {
+    let Some(g) = gpu("analytic_constant_light_exponent_zero_gpu") else {
+        return;
+    };
+    let (scene, want) = constant_light_scene();
+    let img = g.render(&Batch::single(scene).unwrap()).unwrap();
+    assert_close("I (gpu)", &flat32(&img[0].pixels), &[want; 3], 0.0, 1e-3);
+}
+
+/// One lobe (kappa, gamma constant over theta_d) under L = 1 seen along its normal:
+/// with n = w_p = z, x = n.h = cos(theta / 2), so
+/// I = 2 pi int_0^{pi/2} (exp(kappa cos(theta/2)^gamma) - 1) cos(theta) sin(theta) dtheta,
+/// integrated here by composite Simpson with 20000 intervals (independent of the layer's
+/// texel sums).
+fn one_lobe_quadrature(kappa: f64, gamma: f64) -> f64 {
+    let n = 20000;
+    let h = std::f64::consts::FRAC_PI_2 / n as f64;
+    let f = |t: f64| ((kappa * (t / 2.0).cos().powf(gamma)).exp() - 1.0) * t.cos() * t.sin();
+    let mut s = f(0.0) + f(std::f64::consts::FRAC_PI_2);
+    for i in 1..n {
+        s += f(i as f64 * h) * if i % 2 == 1 { 4.0 } else { 2.0 };
+    }
+    2.0 * std::f64::consts::PI * s * h / 3.0
+}
+
+fn one_lobe_scene(kappa: f64, gamma: f64, hl: usize) -> Scene {
+    Scene {
+        normals: NormalMap::new(1, 1, vec![[0.0, 0.0, 1.0]]).unwrap(),
+        env: EnvMap::constant(hl, 2 * hl, Convention::Equirect, [1.0; 3]).unwrap(),
+        material: Material::constant("one lobe", [(kappa, gamma), (0.0, 0.0), (0.0, 0.0)]).unwrap(),
+        camera: Camera::Orthographic,
+    }
+}
+
+#[test]
+fn analytic_one_lobe_against_quadrature() {
+    let (kappa, gamma) = (1.5, 8.0);
+    let want = one_lobe_quadrature(kappa, gamma);
+    // 64 x 128: the midpoint rule over texels is within 0.2%; at 256 x 512 within 0.02%
+    for (hl, rel) in [(64, 2e-3), (256, 2e-4)] {
+        let img = cpu::forward(&Prepared::new(&one_lobe_scene(kappa, gamma, hl)));
+        assert_close(
+            &format!("one lobe cpu {hl}"),
+            &[img[0][0]],
+            &[want],
+            0.0,
+            rel,
+        );
+    }
+    if let Some(g) = gpu("analytic_one_lobe_against_quadrature") {
+        let img = g
+            .render(&Batch::single(one_lobe_scene(kappa, gamma, 64)).unwrap())
+            .unwrap();
+        assert_close(
+            "one lobe gpu 64",
+            &[img[0].pixels[0][0] as f64],
+            &[want],
+            0.0,
+            2e-3,
+        );
+    }
+}
