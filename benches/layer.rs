@@ -38,7 +38,10 @@ fn rel_err(got: &[[f32; 3]], want: &[[f64; 3]]) -> f64 {
 }
 
 fn main() {
-    let args: Vec<String> = std::env::args().skip(1).filter(|a| !a.starts_with('-')).collect();
+    let args: Vec<String> = std::env::args()
+        .skip(1)
+        .filter(|a| !a.starts_with('-'))
+        .collect();
     let size: usize = args.first().and_then(|s| s.parse().ok()).unwrap_or(128);
     let (hl, wl) = args
         .get(1)
@@ -46,13 +49,19 @@ fn main() {
         .and_then(|(a, b)| Some((a.parse().ok()?, b.parse().ok()?)))
         .unwrap_or((64, 128));
     let reps: usize = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(3);
+    // a 4th argument `gpu` skips the CPU reference (and the error columns)
+    let gpu_only = args.get(3).is_some_and(|s| s == "gpu");
 
     // deterministic HDR-ish map: smooth sky with a bright patch, lower half dimmer
     let texels = (0..hl * wl)
         .map(|i| {
             let (r, c) = (i / wl, i % wl);
             let v = 0.3 + 0.7 * ((r * 7 + c * 3) % 11) as f32 / 10.0;
-            let sun = if r < hl / 4 && c % (wl / 4) < 2 { 50.0 } else { 0.0 };
+            let sun = if r < hl / 4 && c % (wl / 4) < 2 {
+                50.0
+            } else {
+                0.0
+            };
             let k = if r > hl / 2 { 0.3 } else { 1.0 };
             [k * v + sun, k * v * 0.9 + sun, k * v * 0.8 + sun]
         })
@@ -78,10 +87,34 @@ fn main() {
     );
 
     let c = cpu::CpuReference;
-    let (cf, cimg) = time(reps, || cpu::forward(&prep));
-    let g64: Vec<[f64; 3]> = upstream[0].pixels.iter().map(|p| p.map(f64::from)).collect();
-    let (cb, cgrad) = time(reps, || cpu::backward(&prep, &g64));
-    println!("{:<60} forward {cf:8.3} s {:8.1} Mpairs/s | backward {cb:8.3} s", c.describe(), pairs / cf);
+    let g64: Vec<[f64; 3]> = upstream[0]
+        .pixels
+        .iter()
+        .map(|p| p.map(f64::from))
+        .collect();
+    let (cf, cimg, cb, cgrad) = if gpu_only {
+        (
+            f64::NAN,
+            Vec::new(),
+            f64::NAN,
+            cpu::backward(
+                &Prepared::new(&Scene {
+                    normals: NormalMap::sphere(1),
+                    ..scene.clone()
+                }),
+                &[[0.0; 3]],
+            ),
+        )
+    } else {
+        let (cf, cimg) = time(reps, || cpu::forward(&prep));
+        let (cb, cgrad) = time(reps, || cpu::backward(&prep, &g64));
+        println!(
+            "{:<60} forward {cf:8.3} s {:8.1} Mpairs/s | backward {cb:8.3} s",
+            c.describe(),
+            pairs / cf
+        );
+        (cf, cimg, cb, cgrad)
+    };
 
     match matedit::gpu::GpuRenderer::new() {
         Err(e) => println!("gpu: not run: {e}"),
@@ -95,6 +128,9 @@ fn main() {
                 cf / gf,
                 cb / gb
             );
+            if gpu_only {
+                return;
+            }
             let dctrl_scale = cgrad.d_ctrl.iter().fold(0.0f64, |a, b| a.max(b.abs()));
             let dctrl_err = ggrad[0]
                 .d_ctrl

@@ -19,42 +19,44 @@ fn backward_normal(@builtin(global_invocation_id) gid: vec3<u32>) {
     let wp = pixels[p].wp.xyz;
     let g = pixels[p].g.xyz;
     var acc = vec3<f32>(0.0);
-    for (var i = 0u; i < params.n_texels; i++) {
-        let w = texels[i].w.xyz;
-        let c = dot(n, w);
-        if c <= 0.0 {
-            continue;
-        }
-        var h: vec3<f32>;
-        var m0: array<vec3<f32>, 3>;
-        var m1: array<vec3<f32>, 3>;
-        if params.perspective == 0u {
-            h = texels[i].h.xyz;
-            for (var k = 0u; k < 3u; k++) {
-                m0[k] = texels[i].coef[k * 2u].xyz;
-                m1[k] = texels[i].coef[k * 2u + 1u].xyz;
+    if params.perspective == 0u {
+        for (var i = 0u; i < params.n_texels; i++) {
+            let w = texels[i].w.xyz;
+            let c = dot(n, w);
+            if c <= 0.0 {
+                continue;
             }
-        } else {
+            let h = texels[i].h.xyz;
+            let x = max(0.0, dot(h, n));
+            let lnx = lobe_log(x);
+            let fr = lobe_sum_dx(x, lnx, texels[i].coef[0].xyz, texels[i].coef[1].xyz);
+            let fg = lobe_sum_dx(x, lnx, texels[i].coef[2].xyz, texels[i].coef[3].xyz);
+            let fb = lobe_sum_dx(x, lnx, texels[i].coef[4].xyz, texels[i].coef[5].xyz);
+            let gl = g * texels[i].ld.xyz;
+            let along_w = gl.x * fr.x + gl.y * fg.x + gl.z * fb.x;
+            let along_h = gl.x * fr.y + gl.y * fg.y + gl.z * fb.y;
+            acc += along_w * w + (c * along_h) * h;
+        }
+    } else {
+        for (var i = 0u; i < params.n_texels; i++) {
+            let w = texels[i].w.xyz;
+            let c = dot(n, w);
+            if c <= 0.0 {
+                continue;
+            }
             let hv = half_vector(w, wp);
-            h = hv.xyz;
+            let h = hv.xyz;
             let b = spline_basis(hv.w);
-            for (var k = 0u; k < 3u; k++) {
-                m0[k] = pair_coef(b, k, 0u);
-                m1[k] = pair_coef(b, k, 1u);
-            }
+            let x = max(0.0, dot(h, n));
+            let lnx = lobe_log(x);
+            let fr = lobe_sum_dx(x, lnx, pair_coef(b, 0u), pair_coef(b, 6u));
+            let fg = lobe_sum_dx(x, lnx, pair_coef(b, 12u), pair_coef(b, 18u));
+            let fb = lobe_sum_dx(x, lnx, pair_coef(b, 24u), pair_coef(b, 30u));
+            let gl = g * texels[i].ld.xyz;
+            let along_w = gl.x * fr.x + gl.y * fg.x + gl.z * fb.x;
+            let along_h = gl.x * fr.y + gl.y * fg.y + gl.z * fb.y;
+            acc += along_w * w + (c * along_h) * h;
         }
-        let x = max(0.0, dot(h, n));
-        let lnx = lobe_log(x);
-        let gl = g * texels[i].ld.xyz;
-        var along_w = 0.0;
-        var along_h = 0.0;
-        for (var k = 0u; k < 3u; k++) {
-            let e = stable_expm1(m0[k] * lobe_pow(x, lnx, m1[k]));
-            along_w += gl[k] * (e.x + e.y + e.z);
-            let dx = (e + 1.0) * m0[k] * lobe_dpow(x, lnx, m1[k]);
-            along_h += gl[k] * (dx.x + dx.y + dx.z);
-        }
-        acc += along_w * w + (c * along_h) * h;
     }
     if params.first == 1u {
         d_normals[p] = vec4<f32>(acc, 0.0);

@@ -4,6 +4,9 @@
 //
 // dLoss/dL^k(i) = sum_p G^k f^k c d_omega
 // share_i[idx(k, s, t, j)] = L^k d_omega sum_p G^k c E_s (x^m1_s, m0_s x^m1_s ln x)[t] B_j(theta_d)
+//
+// Orthographic cameras (theta_d per texel) sum 6 vectors over pixels and apply the texel's
+// basis at the end; perspective cameras apply each pair's basis inside the loop.
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<uniform> pixels: array<Pixel, PIXEL_CHUNK>;
@@ -20,60 +23,76 @@ fn backward_texel(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let w = texels[i].w.xyz;
     var acc_l = vec3<f32>(0.0);
-    // acc[(k * 2 + t) * 6 + j], over lobes; orthographic cameras use j = 0 only and
-    // apply the texel's basis at the end.
+    // acc[(k * 2 + t) * 6 + j], over lobes
     var acc: array<vec3<f32>, 36>;
-    for (var p = 0u; p < params.n_pixels; p++) {
-        let n = pixels[p].n.xyz;
-        let c = dot(n, w);
-        if c <= 0.0 {
-            continue;
-        }
-        var h: vec3<f32>;
-        var b: array<f32, 6>;
-        var m0: array<vec3<f32>, 3>;
-        var m1: array<vec3<f32>, 3>;
-        if params.perspective == 0u {
-            h = texels[i].h.xyz;
-            for (var k = 0u; k < 3u; k++) {
-                m0[k] = texels[i].coef[k * 2u].xyz;
-                m1[k] = texels[i].coef[k * 2u + 1u].xyz;
+    if params.perspective == 0u {
+        let h = texels[i].h.xyz;
+        let m0r = texels[i].coef[0].xyz;
+        let m1r = texels[i].coef[1].xyz;
+        let m0g = texels[i].coef[2].xyz;
+        let m1g = texels[i].coef[3].xyz;
+        let m0b = texels[i].coef[4].xyz;
+        let m1b = texels[i].coef[5].xyz;
+        var d0r = vec3<f32>(0.0);
+        var d1r = vec3<f32>(0.0);
+        var d0g = vec3<f32>(0.0);
+        var d1g = vec3<f32>(0.0);
+        var d0b = vec3<f32>(0.0);
+        var d1b = vec3<f32>(0.0);
+        for (var p = 0u; p < params.n_pixels; p++) {
+            let n = pixels[p].n.xyz;
+            let c = dot(n, w);
+            if c <= 0.0 {
+                continue;
             }
-        } else {
+            let x = max(0.0, dot(h, n));
+            let lnx = lobe_log(x);
+            let gc = pixels[p].g.xyz * c;
+            let r = lobe_grads(x, lnx, m0r, m1r);
+            let g = lobe_grads(x, lnx, m0g, m1g);
+            let b = lobe_grads(x, lnx, m0b, m1b);
+            acc_l += gc * vec3<f32>(r.f, g.f, b.f);
+            d0r += gc.x * r.d0;
+            d1r += gc.x * r.d1;
+            d0g += gc.y * g.d0;
+            d1g += gc.y * g.d1;
+            d0b += gc.z * b.d0;
+            d1b += gc.z * b.d1;
+        }
+        let tb = spline_basis(texels[i].h.w);
+        for (var j = 0u; j < 6u; j++) {
+            acc[j] = d0r * tb[j];
+            acc[6u + j] = d1r * tb[j];
+            acc[12u + j] = d0g * tb[j];
+            acc[18u + j] = d1g * tb[j];
+            acc[24u + j] = d0b * tb[j];
+            acc[30u + j] = d1b * tb[j];
+        }
+    } else {
+        for (var p = 0u; p < params.n_pixels; p++) {
+            let n = pixels[p].n.xyz;
+            let c = dot(n, w);
+            if c <= 0.0 {
+                continue;
+            }
             let hv = half_vector(w, pixels[p].wp.xyz);
-            h = hv.xyz;
-            b = spline_basis(hv.w);
+            let b = spline_basis(hv.w);
+            let x = max(0.0, dot(hv.xyz, n));
+            let lnx = lobe_log(x);
+            let gc = pixels[p].g.xyz * c;
             for (var k = 0u; k < 3u; k++) {
-                m0[k] = pair_coef(b, k, 0u);
-                m1[k] = pair_coef(b, k, 1u);
-            }
-        }
-        let x = max(0.0, dot(h, n));
-        let lnx = lobe_log(x);
-        let gc = pixels[p].g.xyz * c;
-        for (var k = 0u; k < 3u; k++) {
-            let pw = lobe_pow(x, lnx, m1[k]);
-            let e = stable_expm1(m0[k] * pw);
-            acc_l[k] += gc[k] * (e.x + e.y + e.z);
-            let d0 = gc[k] * (e + 1.0) * pw;
-            let d1 = gc[k] * (e + 1.0) * m0[k] * lobe_pow_log(x, lnx, pw);
-            if params.perspective == 0u {
-                acc[(k * 2u) * 6u] += d0;
-                acc[(k * 2u + 1u) * 6u] += d1;
-            } else {
+                let base = k * 12u;
+                let lg = lobe_grads(x, lnx, pair_coef(b, base), pair_coef(b, base + 6u));
+                acc_l[k] += gc[k] * lg.f;
                 for (var j = 0u; j < 6u; j++) {
-                    acc[(k * 2u) * 6u + j] += b[j] * d0;
-                    acc[(k * 2u + 1u) * 6u + j] += b[j] * d1;
+                    acc[base + j] += (gc[k] * b[j]) * lg.d0;
+                    acc[base + 6u + j] += (gc[k] * b[j]) * lg.d1;
                 }
             }
         }
     }
     let ld = texels[i].ld.xyz;
     let dl = vec4<f32>(acc_l * texels[i].w.w, 0.0);
-    var tb = array<f32, 6>(1.0, 1.0, 1.0, 1.0, 1.0, 1.0);
-    if params.perspective == 0u {
-        tb = spline_basis(texels[i].h.w);
-    }
     let first = params.first == 1u;
     if first {
         d_env[i] = dl;
@@ -83,13 +102,7 @@ fn backward_texel(@builtin(global_invocation_id) gid: vec3<u32>) {
     for (var k = 0u; k < 3u; k++) {
         for (var t = 0u; t < 2u; t++) {
             for (var j = 0u; j < 6u; j++) {
-                var a: vec3<f32>;
-                if params.perspective == 0u {
-                    a = acc[(k * 2u + t) * 6u] * tb[j];
-                } else {
-                    a = acc[(k * 2u + t) * 6u + j];
-                }
-                a *= ld[k];
+                let a = acc[(k * 2u + t) * 6u + j] * ld[k];
                 for (var s = 0u; s < 3u; s++) {
                     let o = i * 108u + ((k * 3u + s) * 2u + t) * 6u + j;
                     if first {

@@ -99,21 +99,22 @@ fn half_vector(w: vec3<f32>, wp: vec3<f32>) -> vec4<f32> {
     return vec4<f32>(h, atan2(length(w - wp), len));
 }
 
-// The coefficient vector (over lobes) of channel k, coefficient t at the basis b.
-fn pair_coef(b: array<f32, 6>, k: u32, t: u32) -> vec3<f32> {
-    let base = (k * 2u + t) * 6u;
-    var m = vec3<f32>(0.0);
-    for (var j = 0u; j < 6u; j++) {
-        m += b[j] * params.cc[base + j].xyz;
-    }
-    return m;
+// The coefficient vector (over lobes) at cc[base..base + 6] and the basis b, where
+// base = (k * 2 + t) * 6 for channel k, coefficient t. Unrolled: private arrays indexed in
+// loops are slow on SIMD backends such as lavapipe.
+fn pair_coef(b: array<f32, 6>, base: u32) -> vec3<f32> {
+    return b[0] * params.cc[base].xyz + b[1] * params.cc[base + 1u].xyz
+        + b[2] * params.cc[base + 2u].xyz + b[3] * params.cc[base + 3u].xyz
+        + b[4] * params.cc[base + 4u].xyz + b[5] * params.cc[base + 5u].xyz;
 }
 
 // exp(y) - 1 without cancellation: a degree-8 Taylor polynomial where |y| < 0.5
 // (truncation error < 1.1e-8 relative), exp(y) - 1 elsewhere.
+// Multiplications by reciprocals, not divisions: divisions are several times dearer.
 fn stable_expm1(y: vec3<f32>) -> vec3<f32> {
-    let series = y * (1.0 + y / 2.0 * (1.0 + y / 3.0 * (1.0 + y / 4.0 * (1.0 + y / 5.0
-        * (1.0 + y / 6.0 * (1.0 + y / 7.0 * (1.0 + y / 8.0)))))));
+    let series = y * (1.0 + y * 0.5 * (1.0 + y * (1.0 / 3.0) * (1.0 + y * 0.25
+        * (1.0 + y * 0.2 * (1.0 + y * (1.0 / 6.0) * (1.0 + y * (1.0 / 7.0)
+        * (1.0 + y * 0.125)))))));
     return select(exp(y) - 1.0, series, abs(y) < vec3<f32>(0.5));
 }
 
@@ -138,4 +139,35 @@ fn lobe_dpow(x: f32, lnx: f32, e: vec3<f32>) -> vec3<f32> {
     let d = min(e * exp((e - 1.0) * lnx), vec3<f32>(DPOW_MAX));
     let zero = vec3<bool>(x <= 0.0) | (e == vec3<f32>(0.0));
     return select(d, vec3<f32>(0.0), zero);
+}
+
+// One channel's BRDF: sum over its three lobes of exp(m0 x^m1) - 1.
+fn lobe_sum(x: f32, lnx: f32, m0: vec3<f32>, m1: vec3<f32>) -> f32 {
+    let e = stable_expm1(m0 * lobe_pow(x, lnx, m1));
+    return e.x + e.y + e.z;
+}
+
+// One channel's BRDF (x) and its derivative with respect to x (y):
+// sum_s E_s m0_s m1_s x^(m1_s - 1).
+fn lobe_sum_dx(x: f32, lnx: f32, m0: vec3<f32>, m1: vec3<f32>) -> vec2<f32> {
+    let e = stable_expm1(m0 * lobe_pow(x, lnx, m1));
+    let d = (e + 1.0) * m0 * lobe_dpow(x, lnx, m1);
+    return vec2<f32>(e.x + e.y + e.z, d.x + d.y + d.z);
+}
+
+// One channel's BRDF and its derivatives with respect to the lobes' coefficients.
+struct LobeGrads {
+    // sum_s exp(m0_s x^m1_s) - 1
+    f: f32,
+    // d f / d m0_s = E_s x^m1_s
+    d0: vec3<f32>,
+    // d f / d m1_s = E_s m0_s x^m1_s ln x
+    d1: vec3<f32>,
+}
+
+fn lobe_grads(x: f32, lnx: f32, m0: vec3<f32>, m1: vec3<f32>) -> LobeGrads {
+    let pw = lobe_pow(x, lnx, m1);
+    let e = stable_expm1(m0 * pw);
+    let big_e = e + 1.0;
+    return LobeGrads(e.x + e.y + e.z, big_e * pw, big_e * m0 * lobe_pow_log(x, lnx, pw));
 }

@@ -37,6 +37,10 @@ fn upstream_for(batch: &Batch, seed: u64) -> Vec<Image> {
 /// Forward and backward of `batch` on the GPU against the CPU reference.
 fn compare(test: &str, batch: &Batch) {
     let Some(g) = gpu(test) else { return };
+    compare_on(&g, test, batch);
+}
+
+fn compare_on(g: &matedit::gpu::GpuRenderer, test: &str, batch: &Batch) {
     let images = g.render(batch).expect("gpu render");
     let up = upstream_for(batch, 99);
     let grads = g.backward(batch, &up).expect("gpu backward");
@@ -276,4 +280,26 @@ fn analytic_one_lobe_against_quadrature() {
             2e-3,
         );
     }
+}
+
+#[test]
+fn inputs_over_the_binding_limit_are_split() {
+    let Some(g) = gpu("inputs_over_the_binding_limit_are_split") else {
+        return;
+    };
+    // 64 pixels x 48 bytes and 64 texels x 432 bytes per range: a 20x20 sphere (~300
+    // pixels) and a 16x32 map (512 texels) need 5 pixel ranges and 8 texel ranges
+    let g = g.with_binding_cap(64 * 48);
+    let mut rng = Rng::new(18);
+    let mut s = random_scene(
+        &mut rng,
+        4,
+        4,
+        16,
+        32,
+        Convention::Equirect,
+        Camera::Orthographic,
+    );
+    s.normals = NormalMap::sphere(20);
+    compare_on(&g, "split ranges", &Batch::single(s).unwrap());
 }

@@ -2,7 +2,7 @@
 
 use rayon::prelude::*;
 
-use super::common::{lobe_dpow, lobe_log, lobe_pow, pair_terms, stable_expm1};
+use super::common::{channel_coef, lobe_log, lobe_sum_dx, pair_terms};
 use crate::prepare::{Prepared, dot};
 
 /// dLoss/dn per pixel (row-major, 0 on background) for upstream `g` (row-major).
@@ -28,13 +28,11 @@ pub fn backward_normal(prep: &Prepared, g: &[[f64; 3]]) -> Vec<[f64; 3]> {
                 let mut along_w = 0.0;
                 let mut along_h = 0.0;
                 for k in 0..3 {
+                    let (m0, m1) = channel_coef(&m, k);
+                    let (f, dx) = lobe_sum_dx(x, lnx, m0, m1);
                     let gl = gp[k] * t.ld[k];
-                    for s in 0..3 {
-                        let (m0, m1) = (m[(k * 3 + s) * 2], m[(k * 3 + s) * 2 + 1]);
-                        let e = stable_expm1(m0 * lobe_pow(x, lnx, m1));
-                        along_w += gl * e;
-                        along_h += gl * (e + 1.0) * m0 * lobe_dpow(x, lnx, m1);
-                    }
+                    along_w += gl * f;
+                    along_h += gl * dx;
                 }
                 for a in 0..3 {
                     acc[a] += along_w * w[a] + c * along_h * h[a];

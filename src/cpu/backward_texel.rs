@@ -3,7 +3,7 @@
 
 use rayon::prelude::*;
 
-use super::common::{lobe_log, lobe_pow, lobe_pow_log, pair_terms, stable_expm1};
+use super::common::{channel_coef, lobe_grads, lobe_log, pair_terms};
 use crate::material::{N_PARAMS, idx};
 use crate::prepare::{Prepared, dot};
 use crate::spline::spline_basis;
@@ -36,20 +36,17 @@ pub fn backward_texel(prep: &Prepared, g: &[[f64; 3]]) -> Vec<([f64; 3], [f64; N
                 let gp = g[px.index];
                 for k in 0..3 {
                     let gc = gp[k] * c;
+                    let (m0, m1) = channel_coef(&m, k);
+                    let lg = lobe_grads(x, lnx, m0, m1);
+                    acc_l[k] += gc * lg.f;
                     for s in 0..3 {
-                        let (m0, m1) = (m[(k * 3 + s) * 2], m[(k * 3 + s) * 2 + 1]);
-                        let pw = lobe_pow(x, lnx, m1);
-                        let e = stable_expm1(m0 * pw);
-                        acc_l[k] += gc * e;
-                        let d0 = gc * (e + 1.0) * pw;
-                        let d1 = gc * (e + 1.0) * m0 * lobe_pow_log(x, lnx, pw);
                         if !perspective {
-                            acc[(k * 2) * 6][s] += d0;
-                            acc[(k * 2 + 1) * 6][s] += d1;
+                            acc[(k * 2) * 6][s] += gc * lg.d0[s];
+                            acc[(k * 2 + 1) * 6][s] += gc * lg.d1[s];
                         } else {
                             for j in 0..6 {
-                                acc[(k * 2) * 6 + j][s] += b[j] * d0;
-                                acc[(k * 2 + 1) * 6 + j][s] += b[j] * d1;
+                                acc[(k * 2) * 6 + j][s] += gc * b[j] * lg.d0[s];
+                                acc[(k * 2 + 1) * 6 + j][s] += gc * b[j] * lg.d1[s];
                             }
                         }
                     }

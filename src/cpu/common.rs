@@ -57,3 +57,59 @@ pub fn pair_terms(
         (h, coefficients(ctrl, theta_d), theta_d)
     }
 }
+
+/// One channel's BRDF: sum over its three lobes of exp(m0 x^m1) - 1. `m0`, `m1` are the
+/// lobes' coefficients.
+pub fn lobe_sum(x: f64, lnx: f64, m0: [f64; 3], m1: [f64; 3]) -> f64 {
+    (0..3)
+        .map(|s| stable_expm1(m0[s] * lobe_pow(x, lnx, m1[s])))
+        .sum()
+}
+
+/// One channel's BRDF and its derivative with respect to x:
+/// sum_s E_s m0_s m1_s x^(m1_s - 1).
+pub fn lobe_sum_dx(x: f64, lnx: f64, m0: [f64; 3], m1: [f64; 3]) -> (f64, f64) {
+    let mut f = 0.0;
+    let mut dx = 0.0;
+    for s in 0..3 {
+        let e = stable_expm1(m0[s] * lobe_pow(x, lnx, m1[s]));
+        f += e;
+        dx += (e + 1.0) * m0[s] * lobe_dpow(x, lnx, m1[s]);
+    }
+    (f, dx)
+}
+
+/// One channel's BRDF and its derivatives with respect to the lobes' coefficients.
+pub struct LobeGrads {
+    /// sum_s exp(m0_s x^m1_s) - 1.
+    pub f: f64,
+    /// d f / d m0_s = E_s x^m1_s.
+    pub d0: [f64; 3],
+    /// d f / d m1_s = E_s m0_s x^m1_s ln x.
+    pub d1: [f64; 3],
+}
+
+/// See [`LobeGrads`].
+pub fn lobe_grads(x: f64, lnx: f64, m0: [f64; 3], m1: [f64; 3]) -> LobeGrads {
+    let mut g = LobeGrads {
+        f: 0.0,
+        d0: [0.0; 3],
+        d1: [0.0; 3],
+    };
+    for s in 0..3 {
+        let pw = lobe_pow(x, lnx, m1[s]);
+        let e = stable_expm1(m0[s] * pw);
+        g.f += e;
+        g.d0[s] = (e + 1.0) * pw;
+        g.d1[s] = (e + 1.0) * m0[s] * lobe_pow_log(x, lnx, pw);
+    }
+    g
+}
+
+/// Channel k's coefficient vectors over lobes (m0, m1) from the 18 coefficients.
+pub fn channel_coef(m: &[f64; N_COEF_VALUES], k: usize) -> ([f64; 3], [f64; 3]) {
+    (
+        [0, 1, 2].map(|s| m[(k * 3 + s) * 2]),
+        [0, 1, 2].map(|s| m[(k * 3 + s) * 2 + 1]),
+    )
+}

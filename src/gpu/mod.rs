@@ -24,6 +24,7 @@ use pipelines::Pipeline;
 pub struct GpuRenderer {
     ctx: GpuContext,
     pipelines: Vec<Pipeline>,
+    binding_cap: Option<u64>,
 }
 
 impl GpuRenderer {
@@ -42,7 +43,19 @@ impl GpuRenderer {
         if let Some(e) = pollster::block_on(scope.pop()) {
             return Err(Error::Gpu(format!("building the pipelines: {e}")));
         }
-        Ok(GpuRenderer { ctx, pipelines })
+        Ok(GpuRenderer {
+            ctx,
+            pipelines,
+            binding_cap: None,
+        })
+    }
+
+    /// Caps the bytes of any one storage binding below the adapter's limit, so that large
+    /// inputs are split into more, smaller dispatches (to bound memory, and to test the
+    /// split path on small inputs). At least one workgroup's worth of records is kept.
+    pub fn with_binding_cap(mut self, bytes: u64) -> Self {
+        self.binding_cap = Some(bytes);
+        self
     }
 
     /// The device and adapter.
@@ -57,7 +70,8 @@ impl GpuRenderer {
     /// Most records one storage binding (and one dispatch of 64-thread workgroups) may
     /// hold, for records of `bytes` bytes: inputs beyond it are split into ranges.
     fn max_records(&self, bytes: u64) -> usize {
-        let by_binding = self.ctx.limits.max_storage_buffer_binding_size / bytes;
+        let limit = self.ctx.limits.max_storage_buffer_binding_size;
+        let by_binding = limit.min(self.binding_cap.unwrap_or(u64::MAX)) / bytes;
         let by_buffer = self.ctx.limits.max_buffer_size / bytes;
         let by_dispatch =
             self.ctx.limits.max_compute_workgroups_per_dimension as u64 * layout::WG as u64;
