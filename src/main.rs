@@ -1,1 +1,401 @@
-fn main() {}
+//! The `matedit` command line: parses the arguments, calls the library, reports.
+//!
+//! Exit codes: 0 success, 2 bad usage or bad input (clap's usage errors, and every
+//! [`matedit::Error::is_input_error`]), 1 runtime failures (no GPU for `--device gpu`, a
+//! device error, a failed write). Errors are printed as one line on stderr; no output file
+//! is left behind by a failed run.
+
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Duration;
+
+use clap::{Args, Parser, Subcommand};
+use matedit::io::job::{MaterialSource, NormalsSource, Plan, SceneOptions};
+use matedit::io::{self, EnvSize, Format, Preview, Tonemap};
+use matedit::{Convention, Device, Error, Renderer};
+
+const TOP_EXAMPLES: &str = "\
+Examples:
+  matedit render -o sphere.png                       (the default scene)
+  matedit grad -o grads/ --upstream dloss_dimage.npy
+  matedit info sky.exr
+  matedit presets
+
+Run `matedit help COMMAND` for a command's options and examples.";
+
+const RENDER_EXAMPLES: &str = "\
+Examples:
+  matedit render -o sphere.png
+  matedit render -o gold.exr --preset gold --env studio.exr --env-size 128x256
+  matedit render -o face.npy --normals face_normals.png --material mat.json --fov 40
+  matedit render --batch scenes.json -o renders/
+
+Outputs by extension: .exr (linear float32 RGB), .npy (float32, H x W x 3),
+.png (8-bit sRGB preview: value * 2^exposure, then the tonemap, clamped to [0, 1],
+then sRGB-encoded). See docs/FORMATS.md for every file format and the manifest.";
+
+const GRAD_EXAMPLES: &str = "\
+Examples:
+  matedit grad -o grads/ --upstream dloss_dimage.npy
+  matedit grad -o grads/ --sphere 64 --env sky.exr --preset clay --upstream up.exr
+  matedit grad --batch scenes.json -o grads/
+
+Writes DIR/d_env.npy (H_L x W_L x 3), DIR/d_normals.npy (H x W x 3) and
+DIR/d_material.json ({\"ctrl\": [108 numbers]}). With --batch, each scene's
+'output' is its folder and 'upstream' its gradient file.";
+
+const INFO_EXAMPLES: &str = "\
+Examples:
+  matedit info sky.exr
+  matedit info normals.npy
+  matedit info material.json";
+
+const PRESETS_EXAMPLES: &str = "\
+Examples:
+  matedit presets
+  matedit presets gold > gold.json     (then edit it and use --material gold.json)";
+
+/// Render and differentiate the rendering layer of Liu et al., ICCV 2017: per-pixel
+/// normals lit by a lat-long HDR environment map through a 108-number Directional
+/// Statistics BRDF.
+#[derive(Parser)]
+#[command(name = "matedit", version, propagate_version = true, after_help = TOP_EXAMPLES)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render an image (or a batch of images) to EXR, NPY or PNG.
+    #[command(after_help = RENDER_EXAMPLES)]
+    Render(RenderArgs),
+    /// Differentiate: dLoss/d(env, normals, material) for an upstream dLoss/dImage.
+    #[command(after_help = GRAD_EXAMPLES)]
+    Grad(GradArgs),
+    /// Describe an input file and say what matedit can use it as.
+    #[command(after_help = INFO_EXAMPLES)]
+    Info {
+        /// An .exr, .npy, .png or .json file.
+        file: PathBuf,
+    },
+    /// List the built-in materials, or print one as a material JSON file.
+    #[command(after_help = PRESETS_EXAMPLES)]
+    Presets {
+        /// Print this preset's material JSON instead of the list.
+        name: Option<String>,
+    },
+}
+
+#[derive(Args)]
+struct SceneArgs {
+    /// Normal map: .exr (channels R, G, B = n.x, n.y, n.z), .npy (H x W x 3) or .png (8-bit, n = 2v/255 - 1).
+    #[arg(long, value_name = "FILE", conflicts_with = "sphere")]
+    normals: Option<PathBuf>,
+    /// A unit sphere filling an N x N image [default: 256 when no --normals].
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=8192))]
+    sphere: Option<u32>,
+    /// Lat-long HDR environment map, .exr or .npy, row 0 = top [default: a built-in procedural sky with a sun].
+    #[arg(long, value_name = "FILE")]
+    env: Option<PathBuf>,
+    /// Environment size HxW; a larger map is downsampled by a whole factor per axis (solid-angle weighted); 'full' keeps the file's size [default: 64x128].
+    #[arg(long, value_name = "HxW|full")]
+    env_size: Option<EnvSize>,
+    /// Texel convention: 'equirect' (physical solid angles) or 'paper' (the supplemental's equations) [default: equirect].
+    #[arg(long, value_name = "NAME")]
+    convention: Option<Convention>,
+    /// Material JSON file: {"name": ..., "ctrl": [108 numbers]}.
+    #[arg(long, value_name = "FILE", conflicts_with = "preset")]
+    material: Option<PathBuf>,
+    /// A built-in material (see `matedit presets`) [default: plastic-red].
+    #[arg(long, value_name = "NAME", value_parser = clap::builder::PossibleValuesParser::new(matedit::presets::names()))]
+    preset: Option<String>,
+    /// Perspective camera with this vertical field of view in degrees [default: orthographic].
+    #[arg(long, value_name = "DEG", value_parser = parse_fov)]
+    fov: Option<f64>,
+    /// Backend: auto (a GPU if any, else the CPU), gpu, or cpu (the f64 reference).
+    #[arg(long, value_name = "auto|gpu|cpu", default_value = "auto")]
+    device: Device,
+    /// A JSON manifest listing several scenes, rendered in one batch (see docs/FORMATS.md). Options above are defaults for what it leaves out.
+    #[arg(long, value_name = "MANIFEST")]
+    batch: Option<PathBuf>,
+}
+
+#[derive(Args)]
+struct RenderArgs {
+    /// Output image (.exr, .npy or .png); with --batch, the folder that relative outputs go to.
+    #[arg(short, long, value_name = "OUT", required_unless_present = "batch")]
+    output: Option<PathBuf>,
+    #[command(flatten)]
+    scene: SceneArgs,
+    /// PNG only: exposure in stops; values are multiplied by 2^EV.
+    #[arg(
+        long,
+        value_name = "EV",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    exposure: f32,
+    /// PNG only: 'clamp' clips values above 1 (after exposure), 'reinhard' maps x to x / (1 + x); then sRGB encoding.
+    #[arg(long, value_name = "clamp|reinhard", default_value = "clamp")]
+    tonemap: Tonemap,
+}
+
+#[derive(Args)]
+struct GradArgs {
+    /// Output folder (created if missing); with --batch, the folder that relative outputs go to.
+    #[arg(short, long, value_name = "DIR", required_unless_present = "batch")]
+    output: Option<PathBuf>,
+    #[command(flatten)]
+    scene: SceneArgs,
+    /// Upstream gradient dLoss/dImage, H x W x 3, .npy or .exr.
+    #[arg(long, value_name = "FILE", required_unless_present = "batch")]
+    upstream: Option<PathBuf>,
+}
+
+fn parse_fov(s: &str) -> Result<f64, String> {
+    let v: f64 = s.parse().map_err(|_| format!("'{s}' is not a number"))?;
+    if v.is_finite() && v > 0.0 && v < 180.0 {
+        Ok(v)
+    } else {
+        Err(format!("{v} degrees is outside (0, 180)"))
+    }
+}
+
+/// A failure and the exit code it gets.
+struct Failure {
+    error: Error,
+    code: u8,
+}
+
+impl From<Error> for Failure {
+    fn from(error: Error) -> Self {
+        let code = if error.is_input_error() { 2 } else { 1 };
+        Failure { error, code }
+    }
+}
+
+/// A runtime failure (exit code 1) whatever the error's kind, e.g. a write that failed
+/// after the inputs were accepted.
+fn runtime(error: Error) -> Failure {
+    Failure { error, code: 1 }
+}
+
+impl SceneArgs {
+    fn options(&self) -> SceneOptions {
+        SceneOptions {
+            normals: match (&self.normals, self.sphere) {
+                (Some(p), _) => Some(NormalsSource::File(p.clone())),
+                (None, Some(n)) => Some(NormalsSource::Sphere(n as usize)),
+                (None, None) => None,
+            },
+            env: self.env.clone(),
+            env_size: self.env_size,
+            convention: self.convention,
+            material: match (&self.material, &self.preset) {
+                (Some(p), _) => Some(MaterialSource::File(p.clone())),
+                (None, Some(n)) => Some(MaterialSource::Preset(n.clone())),
+                (None, None) => None,
+            },
+            fov: self.fov,
+        }
+    }
+
+    /// The plan: one scene from the options, or the manifest's scenes.
+    fn plan(&self, output: Option<&Path>, upstream: Option<&Path>) -> Result<Plan, Failure> {
+        let opts = self.options();
+        match &self.batch {
+            Some(manifest) => {
+                let m = io::manifest::read(manifest, output)?;
+                Ok(Plan::from_manifest(&opts, &m, upstream))
+            }
+            None => {
+                let output = output.ok_or_else(|| Error::Invalid("no output given (-o)".into()))?;
+                Ok(Plan::single(
+                    &opts,
+                    output.to_path_buf(),
+                    upstream.map(Path::to_path_buf),
+                ))
+            }
+        }
+    }
+}
+
+/// Runs `f`, showing a spinner on stderr if it takes more than a second and stderr is a
+/// terminal.
+fn with_progress<T>(label: &'static str, f: impl FnOnce() -> T) -> T {
+    if !std::io::stderr().is_terminal() {
+        return f();
+    }
+    let (done, wait) = std::sync::mpsc::channel::<()>();
+    let spinner = std::thread::spawn(move || {
+        if let Err(std::sync::mpsc::RecvTimeoutError::Timeout) =
+            wait.recv_timeout(Duration::from_secs(1))
+        {
+            let bar = indicatif::ProgressBar::new_spinner().with_message(label);
+            if let Ok(style) = indicatif::ProgressStyle::with_template("{spinner} {msg} {elapsed}")
+            {
+                bar.set_style(style);
+            }
+            bar.enable_steady_tick(Duration::from_millis(100));
+            let _ = wait.recv();
+            bar.finish_and_clear();
+        }
+    });
+    let out = f();
+    drop(done);
+    let _ = spinner.join();
+    out
+}
+
+fn renderer(device: Device) -> Result<Renderer, Failure> {
+    let r = Renderer::new(device)?;
+    eprintln!("matedit: device: {}", r.describe());
+    Ok(r)
+}
+
+fn render(args: &RenderArgs) -> Result<(), Failure> {
+    let plan = args.scene.plan(args.output.as_deref(), None)?;
+    for s in &plan.scenes {
+        io::check_output(&s.output, &[Format::Exr, Format::Npy, Format::Png])?;
+    }
+    let loaded = plan.load()?;
+    for n in &loaded.notes {
+        eprintln!("matedit: {n}");
+    }
+    let renderer = renderer(args.scene.device)?;
+    let images = with_progress("rendering", || renderer.render(&loaded.batch))?;
+    let preview = Preview {
+        exposure: args.exposure,
+        tonemap: args.tonemap,
+    };
+    let mut staged = Vec::with_capacity(images.len());
+    for (s, image) in plan.scenes.iter().zip(&images) {
+        let bytes = io::encode_image(&s.output, image, &preview).map_err(runtime)?;
+        staged.push(io::stage(&s.output, &bytes).map_err(runtime)?);
+    }
+    for (p, image) in io::commit_all(staged).map_err(runtime)?.iter().zip(&images) {
+        eprintln!(
+            "matedit: wrote {} ({}x{})",
+            p.display(),
+            image.width,
+            image.height
+        );
+    }
+    Ok(())
+}
+
+fn check_grad_dir(dir: &Path) -> Result<(), Failure> {
+    if dir.exists() && !dir.is_dir() {
+        return Err(Error::file(dir, "exists and is not a folder").into());
+    }
+    if !dir.exists() {
+        io::check_parent(dir)?;
+    }
+    Ok(())
+}
+
+fn grad(args: &GradArgs) -> Result<(), Failure> {
+    let plan = args
+        .scene
+        .plan(args.output.as_deref(), args.upstream.as_deref())?;
+    for s in &plan.scenes {
+        check_grad_dir(&s.output)?;
+    }
+    let loaded = plan.load()?;
+    let upstream = plan.load_upstream(&loaded.batch)?;
+    for n in &loaded.notes {
+        eprintln!("matedit: {n}");
+    }
+    let renderer = renderer(args.scene.device)?;
+    let grads = with_progress("differentiating", || {
+        renderer.backward(&loaded.batch, &upstream)
+    })?;
+    let mut staged = Vec::new();
+    for ((spec, scene), g) in plan.scenes.iter().zip(loaded.batch.scenes()).zip(&grads) {
+        let dir = &spec.output;
+        std::fs::create_dir_all(dir)
+            .map_err(|e| runtime(Error::file(dir, format!("cannot create the folder: {e}"))))?;
+        let env = &scene.env;
+        let n = &scene.normals;
+        let files = [
+            (
+                dir.join("d_env.npy"),
+                io::npy::encode_rgb(env.width, env.height, &g.d_env),
+            ),
+            (
+                dir.join("d_normals.npy"),
+                io::npy::encode_rgb(n.width, n.height, &g.d_normals),
+            ),
+            (
+                dir.join("d_material.json"),
+                io::json::encode_gradient(&g.d_ctrl),
+            ),
+        ];
+        for (path, bytes) in &files {
+            staged.push(io::stage(path, bytes).map_err(runtime)?);
+        }
+    }
+    for p in io::commit_all(staged).map_err(runtime)? {
+        eprintln!("matedit: wrote {}", p.display());
+    }
+    Ok(())
+}
+
+fn presets(name: Option<&str>) -> Result<(), Failure> {
+    match name {
+        None => {
+            let width = matedit::presets::names()
+                .iter()
+                .map(|n| n.len())
+                .max()
+                .unwrap_or(0);
+            for p in matedit::presets::all() {
+                println!("{:<width$}  {}", p.name, p.description);
+            }
+        }
+        Some(name) => {
+            let Some(p) = matedit::presets::all().iter().find(|p| p.name == name) else {
+                return Err(Error::Invalid(format!(
+                    "unknown preset '{name}'; the presets are {}",
+                    matedit::presets::names().join(", ")
+                ))
+                .into());
+            };
+            let bytes = io::json::encode_material(&p.material(), Some(p.description));
+            print!("{}", String::from_utf8_lossy(&bytes));
+        }
+    }
+    Ok(())
+}
+
+fn run(cli: Cli) -> Result<(), Failure> {
+    match cli.command {
+        Command::Render(args) => render(&args),
+        Command::Grad(args) => grad(&args),
+        Command::Info { file } => {
+            print!("{}", io::info::describe(&file)?);
+            Ok(())
+        }
+        Command::Presets { name } => presets(name.as_deref()),
+    }
+}
+
+fn main() -> ExitCode {
+    if std::env::var_os("RUST_BACKTRACE").is_none() {
+        // A bug is still a bug, but the user gets one line, not a backtrace dump.
+        std::panic::set_hook(Box::new(|info| {
+            let msg = info.to_string().replace('\n', " ");
+            eprintln!("error: internal error (please report it): {msg}");
+        }));
+    }
+    let cli = Cli::parse();
+    match run(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(f) => {
+            eprintln!("error: {}", f.error);
+            ExitCode::from(f.code)
+        }
+    }
+}

@@ -1,1 +1,216 @@
-//! Built-in materials.
+//! Built-in materials: a handful of plausible DSBRDF parameter sets, built in code.
+//!
+//! Each preset has up to three lobes, f = sum_s (exp(m0_s x^m1_s) - 1) per channel:
+//! - a diffuse lobe (m1 = 0, so f = exp(m0) - 1 is constant), with m0 = ln(1 + rho / pi)
+//!   for a Lambertian albedo rho;
+//! - glossy lobes (m1 from 4 to 400), whose scale can rise towards grazing theta_d
+//!   (a Fresnel-like ramp over the last spline control points).
+//!
+//! The scales are chosen so that the directional albedo stays below 1 and renders under
+//! the default environment have values of order 0.1 to 10.
+
+use crate::material::{Material, N_CHANNELS, N_LOBES, N_PARAMS, idx};
+use crate::spline::N_CTRL_POINTS;
+
+/// The preset used when no material is given.
+pub const DEFAULT: &str = "plastic-red";
+
+/// No ramp: the lobe is the same at every theta_d.
+const FLAT: [f64; N_CTRL_POINTS] = [1.0; N_CTRL_POINTS];
+/// A Fresnel-like rise of the scale towards theta_d = pi/2.
+const FRESNEL: [f64; N_CTRL_POINTS] = [1.0, 1.0, 1.0, 1.1, 1.4, 2.0];
+
+/// One lobe: scale m0 per channel, exponent m1, and the scale's ramp over theta_d.
+#[derive(Clone, Copy, Debug)]
+struct Lobe {
+    m0: [f64; N_CHANNELS],
+    m1: f64,
+    ramp: [f64; N_CTRL_POINTS],
+}
+
+const NONE: Lobe = Lobe {
+    m0: [0.0; N_CHANNELS],
+    m1: 0.0,
+    ramp: FLAT,
+};
+
+/// A Lambertian lobe of albedo `rho` per channel: exp(m0) - 1 = rho / pi.
+const fn diffuse(m0: [f64; N_CHANNELS]) -> Lobe {
+    Lobe {
+        m0,
+        m1: 0.0,
+        ramp: FLAT,
+    }
+}
+
+/// A built-in material.
+#[derive(Clone, Copy, Debug)]
+pub struct Preset {
+    /// The name used with `--preset`.
+    pub name: &'static str,
+    /// One line saying what it looks like.
+    pub description: &'static str,
+    lobes: [Lobe; N_LOBES],
+}
+
+impl Preset {
+    /// The 108 control points.
+    pub fn ctrl(&self) -> [f64; N_PARAMS] {
+        let mut ctrl = [0.0; N_PARAMS];
+        for (s, lobe) in self.lobes.iter().enumerate() {
+            for k in 0..N_CHANNELS {
+                for j in 0..N_CTRL_POINTS {
+                    ctrl[idx(k, s, 0, j)] = lobe.m0[k] * lobe.ramp[j];
+                    ctrl[idx(k, s, 1, j)] = lobe.m1;
+                }
+            }
+        }
+        ctrl
+    }
+
+    /// The preset as a [`Material`].
+    pub fn material(&self) -> Material {
+        Material {
+            name: self.name.to_string(),
+            ctrl: self.ctrl(),
+        }
+    }
+}
+
+/// ln(1 + rho / pi) for the albedos used below, precomputed because `ln` is not const.
+const fn lambert(rho: [f64; N_CHANNELS]) -> Lobe {
+    // exp(m0) - 1 = rho / pi; for rho / pi <= 0.26, m0 = y - y^2/2 + y^3/3 - y^4/4 is
+    // accurate to 1e-3 relative, plenty for a preset.
+    let mut m0 = [0.0; N_CHANNELS];
+    let mut k = 0;
+    while k < N_CHANNELS {
+        let y = rho[k] / std::f64::consts::PI;
+        m0[k] = y - y * y / 2.0 + y * y * y / 3.0 - y * y * y * y / 4.0;
+        k += 1;
+    }
+    diffuse(m0)
+}
+
+const PRESETS: [Preset; 6] = [
+    Preset {
+        name: "plastic-red",
+        description: "glossy red plastic: red diffuse base, white highlight (the default)",
+        lobes: [
+            lambert([0.55, 0.06, 0.04]),
+            Lobe {
+                m0: [0.7; 3],
+                m1: 200.0,
+                ramp: FRESNEL,
+            },
+            Lobe {
+                m0: [0.05; 3],
+                m1: 20.0,
+                ramp: FRESNEL,
+            },
+        ],
+    },
+    Preset {
+        name: "gold",
+        description: "polished gold: no diffuse, a tinted glossy lobe and a faint haze",
+        lobes: [
+            NONE,
+            Lobe {
+                m0: [2.9, 2.45, 1.35],
+                m1: 200.0,
+                ramp: FLAT,
+            },
+            Lobe {
+                m0: [0.10, 0.07, 0.02],
+                m1: 30.0,
+                ramp: FLAT,
+            },
+        ],
+    },
+    Preset {
+        name: "clay",
+        description: "terracotta clay: rough orange-brown diffuse with a faint broad sheen",
+        lobes: [
+            lambert([0.50, 0.30, 0.20]),
+            Lobe {
+                m0: [0.03; 3],
+                m1: 4.0,
+                ramp: FRESNEL,
+            },
+            NONE,
+        ],
+    },
+    Preset {
+        name: "chrome-ish",
+        description: "brushed chrome: a sharp neutral reflection (blurred at 64x128) and a soft halo",
+        lobes: [
+            NONE,
+            Lobe {
+                m0: [3.3; 3],
+                m1: 400.0,
+                ramp: FLAT,
+            },
+            Lobe {
+                m0: [0.15; 3],
+                m1: 40.0,
+                ramp: FLAT,
+            },
+        ],
+    },
+    Preset {
+        name: "blue-rubber",
+        description: "blue rubber: saturated blue diffuse with a dull, wide sheen",
+        lobes: [
+            lambert([0.04, 0.10, 0.45]),
+            Lobe {
+                m0: [0.06; 3],
+                m1: 12.0,
+                ramp: FRESNEL,
+            },
+            NONE,
+        ],
+    },
+    Preset {
+        name: "matte-white",
+        description: "ideal white Lambertian, albedo 0.8 (a reference for lighting)",
+        lobes: [lambert([0.8; 3]), NONE, NONE],
+    },
+];
+
+/// Every built-in preset, the default first.
+pub fn all() -> &'static [Preset] {
+    &PRESETS
+}
+
+/// The preset names, the default first.
+pub fn names() -> Vec<&'static str> {
+    PRESETS.iter().map(|p| p.name).collect()
+}
+
+/// The material of the preset called `name`, if there is one.
+pub fn lookup(name: &str) -> Option<Material> {
+    PRESETS
+        .iter()
+        .find(|p| p.name == name)
+        .map(Preset::material)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn presets_are_valid_and_default_exists() {
+        assert!(lookup(DEFAULT).is_some());
+        assert_eq!(all()[0].name, DEFAULT);
+        for p in all() {
+            let m = p.material();
+            Material::new(p.name, &m.ctrl).unwrap();
+        }
+    }
+
+    #[test]
+    fn lambert_scale_matches_albedo() {
+        let m0 = lambert([0.8; 3]).m0[0];
+        assert!((m0.exp_m1() - 0.8 / std::f64::consts::PI).abs() < 1e-3);
+    }
+}

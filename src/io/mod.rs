@@ -1,1 +1,389 @@
-//! Reading and writing files: EXR, NPY, PNG, JSON.
+//! Reading and writing files: normal maps, environment maps, materials, upstream gradients
+//! and rendered images in EXR, NPY, PNG and JSON; scene descriptions and batch manifests;
+//! atomic output.
+//!
+//! Every loader checks what it reads and returns an [`Error::File`] naming the file, the
+//! item and what is wrong (`normals.npy: pixel (3, 7) is NaN`, pixel = (column, row));
+//! nothing here panics on user input. Outputs are written to a temporary file in the
+//! destination folder and renamed into place, so a failed run leaves no partial file.
+//! docs/FORMATS.md describes every format.
+
+pub mod exr;
+pub mod info;
+pub mod job;
+pub mod json;
+pub mod manifest;
+pub mod npy;
+pub mod png;
+pub mod resample;
+
+use std::path::{Path, PathBuf};
+
+use crate::envmap::{Convention, EnvMap, MAX_RADIANCE};
+use crate::error::{Error, Result};
+use crate::material::Material;
+use crate::scene::{BACKGROUND_EPS, Image, NormalMap};
+
+pub use png::{Preview, Tonemap};
+pub use resample::EnvSize;
+
+/// A 3-channel float raster as read from a file, row-major, row 0 at the top, kept in f64
+/// so that checks see the file's values.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Raster {
+    /// Columns.
+    pub width: usize,
+    /// Rows.
+    pub height: usize,
+    /// Three values per pixel.
+    pub pixels: Vec<[f64; 3]>,
+}
+
+/// A file format, known by the file's extension.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Format {
+    /// OpenEXR (`.exr`).
+    Exr,
+    /// NumPy array (`.npy`).
+    Npy,
+    /// PNG (`.png`).
+    Png,
+    /// JSON (`.json`).
+    Json,
+}
+
+impl Format {
+    /// The format of `path` by its extension (case-insensitive), if known.
+    pub fn of(path: &Path) -> Option<Format> {
+        let ext = path.extension()?.to_str()?.to_ascii_lowercase();
+        match ext.as_str() {
+            "exr" => Some(Format::Exr),
+            "npy" => Some(Format::Npy),
+            "png" => Some(Format::Png),
+            "json" => Some(Format::Json),
+            _ => None,
+        }
+    }
+
+    /// The extension, e.g. `.exr`.
+    pub fn ext(self) -> &'static str {
+        match self {
+            Format::Exr => ".exr",
+            Format::Npy => ".npy",
+            Format::Png => ".png",
+            Format::Json => ".json",
+        }
+    }
+}
+
+/// The format of `path` if it is one of `allowed`; else an error saying which are.
+pub fn format_of(path: &Path, what: &str, allowed: &[Format]) -> Result<Format> {
+    let exts = allowed.iter().map(|f| f.ext()).collect::<Vec<_>>();
+    let list = match exts.as_slice() {
+        [one] => one.to_string(),
+        [init @ .., last] => format!("{} or {last}", init.join(", ")),
+        [] => String::new(),
+    };
+    match Format::of(path) {
+        Some(f) if allowed.contains(&f) => Ok(f),
+        _ => Err(Error::file(
+            path,
+            format!("{what} must be a {list} file (known by its extension)"),
+        )),
+    }
+}
+
+/// Reads a whole file, with an error that says plainly what is wrong.
+pub(crate) fn read_bytes(path: &Path) -> Result<Vec<u8>> {
+    if path.is_dir() {
+        return Err(Error::file(path, "is a folder, not a file"));
+    }
+    std::fs::read(path).map_err(|e| {
+        let why = match e.kind() {
+            std::io::ErrorKind::NotFound => "no such file".to_string(),
+            std::io::ErrorKind::PermissionDenied => "permission denied".to_string(),
+            _ => format!("cannot read: {e}"),
+        };
+        Error::file(path, why)
+    })
+}
+
+/// Reads an H x W x 3 float raster from an EXR or NPY file.
+pub fn read_raster(path: &Path, what: &str) -> Result<Raster> {
+    match format_of(path, what, &[Format::Exr, Format::Npy])? {
+        Format::Exr => exr::read_rgb(path),
+        _ => npy_raster(path, npy::read(path)?),
+    }
+}
+
+/// An NPY array of shape (H, W, 3) as a raster.
+pub fn npy_raster(path: &Path, a: npy::NpyArray) -> Result<Raster> {
+    let [height, width, 3] = a.shape[..] else {
+        return Err(Error::file(
+            path,
+            format!(
+                "shape {} is not (height, width, 3)",
+                npy::shape_str(&a.shape)
+            ),
+        ));
+    };
+    if height == 0 || width == 0 {
+        return Err(Error::file(
+            path,
+            format!("shape {} is empty", npy::shape_str(&a.shape)),
+        ));
+    }
+    let pixels = a.data.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+    Ok(Raster {
+        width,
+        height,
+        pixels,
+    })
+}
+
+const CHANNELS: [&str; 3] = ["R", "G", "B"];
+
+/// The first non-finite value of a raster: (pixel index, channel, "NaN" or "infinite").
+fn first_non_finite(pixels: &[[f64; 3]]) -> Option<(usize, usize, &'static str)> {
+    pixels.iter().enumerate().find_map(|(i, p)| {
+        p.iter().enumerate().find_map(|(c, v)| {
+            (!v.is_finite()).then_some((i, c, if v.is_nan() { "NaN" } else { "infinite" }))
+        })
+    })
+}
+
+/// Normalises raw normals: background (|n| < 1e-6) becomes [0, 0, 0], the rest unit length.
+/// Errors name the first non-finite pixel as (column, row).
+fn normalise(path: &Path, width: usize, raw: &[[f64; 3]]) -> Result<Vec<[f32; 3]>> {
+    if let Some((i, _, what)) = first_non_finite(raw) {
+        return Err(Error::file(
+            path,
+            format!("pixel ({}, {}) is {what}", i % width, i / width),
+        ));
+    }
+    Ok(raw
+        .iter()
+        .map(|n| {
+            let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+            if len < BACKGROUND_EPS {
+                [0.0; 3]
+            } else {
+                n.map(|v| (v / len) as f32)
+            }
+        })
+        .collect())
+}
+
+/// Loads a normal map (EXR, NPY or PNG): channels (n.x, n.y, n.z), normalised, background
+/// where |n| < 1e-6 (and, in PNG files, where alpha is 0 or R = G = B = 0).
+pub fn load_normals(path: &Path) -> Result<NormalMap> {
+    let format = format_of(
+        path,
+        "a normal map",
+        &[Format::Exr, Format::Npy, Format::Png],
+    )?;
+    let (width, height, raw) = match format {
+        Format::Png => png::read_normals(path)?,
+        _ => {
+            let r = read_raster(path, "a normal map")?;
+            (r.width, r.height, r.pixels)
+        }
+    };
+    let normals = normalise(path, width, &raw)?;
+    NormalMap::new(width, height, normals).map_err(|e| Error::file(path, e.to_string()))
+}
+
+/// An environment map as loaded, with how many negative values were clamped to 0.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LoadedEnv {
+    /// The map at the file's size.
+    pub env: EnvMap,
+    /// Channel values that were negative and are now 0.
+    pub clamped: usize,
+}
+
+/// Loads a lat-long environment map (EXR or NPY, row 0 = top) under `convention`.
+/// Negative values are clamped to 0 and counted; NaN, infinite or huge values are errors.
+pub fn load_env(path: &Path, convention: Convention) -> Result<LoadedEnv> {
+    let r = read_raster(path, "an environment map")?;
+    if let Some((i, c, what)) = first_non_finite(&r.pixels) {
+        return Err(Error::file(
+            path,
+            format!(
+                "texel (row {}, column {}) channel {} is {what}",
+                i / r.width,
+                i % r.width,
+                CHANNELS[c]
+            ),
+        ));
+    }
+    let mut texels: Vec<[f32; 3]> = r.pixels.iter().map(|p| p.map(|v| v as f32)).collect();
+    let clamped = EnvMap::clamp_negative(&mut texels);
+    if let Some((i, c)) = texels
+        .iter()
+        .enumerate()
+        .find_map(|(i, t)| t.iter().position(|&v| v > MAX_RADIANCE).map(|c| (i, c)))
+    {
+        return Err(Error::file(
+            path,
+            format!(
+                "texel (row {}, column {}) channel {} is {}, above the largest radiance accepted ({MAX_RADIANCE})",
+                i / r.width,
+                i % r.width,
+                CHANNELS[c],
+                r.pixels[i][c]
+            ),
+        ));
+    }
+    let env = EnvMap::new(r.height, r.width, convention, texels)
+        .map_err(|e| Error::file(path, e.to_string()))?;
+    Ok(LoadedEnv { env, clamped })
+}
+
+/// Loads an upstream gradient dLoss/dImage (EXR or NPY, H x W x 3, every value finite).
+pub fn load_upstream(path: &Path) -> Result<Image> {
+    let r = read_raster(path, "an upstream gradient")?;
+    if let Some((i, c, what)) = first_non_finite(&r.pixels) {
+        return Err(Error::file(
+            path,
+            format!(
+                "pixel ({}, {}) channel {} is {what}",
+                i % r.width,
+                i / r.width,
+                CHANNELS[c]
+            ),
+        ));
+    }
+    if let Some((i, c)) = r.pixels.iter().enumerate().find_map(|(i, p)| {
+        p.iter()
+            .position(|v| v.abs() > f32::MAX as f64)
+            .map(|c| (i, c))
+    }) {
+        return Err(Error::file(
+            path,
+            format!(
+                "pixel ({}, {}) channel {} is {}, beyond float32 range",
+                i % r.width,
+                i / r.width,
+                CHANNELS[c],
+                r.pixels[i][c]
+            ),
+        ));
+    }
+    Ok(Image {
+        width: r.width,
+        height: r.height,
+        pixels: r.pixels.iter().map(|p| p.map(|v| v as f32)).collect(),
+    })
+}
+
+/// Loads a material JSON file (`{"name": ..., "ctrl": [108 numbers]}`).
+pub fn load_material(path: &Path) -> Result<Material> {
+    format_of(path, "a material", &[Format::Json])?;
+    json::read_material(path)
+}
+
+/// Checks before any work is done that an output can be written to `path`: a known
+/// extension among `allowed` and an existing folder to put it in.
+pub fn check_output(path: &Path, allowed: &[Format]) -> Result<Format> {
+    let format = format_of(path, "the output", allowed)?;
+    if path.is_dir() {
+        return Err(Error::file(path, "is a folder; give a file name"));
+    }
+    check_parent(path)?;
+    Ok(format)
+}
+
+/// Checks that the folder that will hold `path` exists.
+pub fn check_parent(path: &Path) -> Result<()> {
+    let parent = parent_dir(path);
+    if !parent.is_dir() {
+        return Err(Error::file(
+            path,
+            format!("folder {} does not exist", parent.display()),
+        ));
+    }
+    Ok(())
+}
+
+fn parent_dir(path: &Path) -> &Path {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    }
+}
+
+/// Encodes a rendered image for `path` by its extension: `.exr` (linear float32 RGB),
+/// `.npy` (float32, H x W x 3) or `.png` (8-bit sRGB preview under `preview`).
+pub fn encode_image(path: &Path, image: &Image, preview: &Preview) -> Result<Vec<u8>> {
+    match format_of(path, "the output", &[Format::Exr, Format::Npy, Format::Png])? {
+        Format::Exr => exr::encode_rgb(image.width, image.height, &image.pixels),
+        Format::Npy => Ok(npy::encode_rgb(image.width, image.height, &image.pixels)),
+        _ => png::encode_preview(image, preview),
+    }
+}
+
+/// Bytes written to a temporary file beside their destination, not yet in place.
+#[derive(Debug)]
+pub struct Staged {
+    file: tempfile::NamedTempFile,
+    path: PathBuf,
+}
+
+impl Staged {
+    /// Moves the file into place (an atomic rename on the same file system).
+    pub fn commit(self) -> Result<PathBuf> {
+        let path = self.path;
+        self.file
+            .persist(&path)
+            .map_err(|e| Error::file(&path, format!("cannot write: {}", e.error)))?;
+        Ok(path)
+    }
+
+    /// The destination.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+}
+
+/// Writes `bytes` to a temporary file in `path`'s folder; [`Staged::commit`] puts it in
+/// place. Dropping the [`Staged`] removes the temporary file.
+pub fn stage(path: &Path, bytes: &[u8]) -> Result<Staged> {
+    use std::io::Write;
+    let dir = parent_dir(path);
+    let fail = |e: std::io::Error| Error::file(path, format!("cannot write: {e}"));
+    let mut file = tempfile::Builder::new()
+        .prefix(".matedit-")
+        .suffix(".tmp")
+        .tempfile_in(dir)
+        .map_err(fail)?;
+    file.write_all(bytes).map_err(fail)?;
+    file.as_file().sync_all().map_err(fail)?;
+    Ok(Staged {
+        file,
+        path: path.to_path_buf(),
+    })
+}
+
+/// Writes `bytes` to `path` atomically: all of it or, on failure, nothing.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    stage(path, bytes)?.commit().map(|_| ())
+}
+
+/// Puts staged files in place. On a failure, removes those already put in place by this
+/// call, so that a batch is written whole or not at all (as far as the file system allows).
+pub fn commit_all(staged: Vec<Staged>) -> Result<Vec<PathBuf>> {
+    let mut done = Vec::new();
+    for s in staged {
+        match s.commit() {
+            Ok(p) => done.push(p),
+            Err(e) => {
+                for p in &done {
+                    let _ = std::fs::remove_file(p);
+                }
+                return Err(e);
+            }
+        }
+    }
+    Ok(done)
+}

@@ -1,0 +1,293 @@
+//! From options to a loaded batch: what the command line (and a manifest) say about the
+//! scenes, the defaults that fill the gaps, and loading every input with checks.
+//!
+//! Defaults: a sphere of [`DEFAULT_SPHERE`] pixels, the procedural environment of
+//! [`crate::defaults::procedural_env`], the preset [`crate::presets::DEFAULT`], an
+//! orthographic camera, env size 64x128 and the `equirect` convention.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use super::manifest::Manifest;
+use super::resample::{self, EnvSize};
+use crate::camera::Camera;
+use crate::envmap::{Convention, DEFAULT_ENV_SIZE, EnvMap};
+use crate::error::{Error, Result};
+use crate::material::Material;
+use crate::scene::{Batch, Image, NormalMap, Scene};
+
+/// Side of the default sphere image.
+pub const DEFAULT_SPHERE: usize = 256;
+
+/// Largest image side accepted for a generated sphere.
+pub const MAX_IMAGE_SIDE: usize = 8192;
+
+/// Where a scene's normals come from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum NormalsSource {
+    /// A normal-map file (EXR, NPY or PNG).
+    File(PathBuf),
+    /// A unit sphere filling an N x N image.
+    Sphere(usize),
+}
+
+/// Where a scene's material comes from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum MaterialSource {
+    /// A material JSON file.
+    File(PathBuf),
+    /// A built-in preset by name.
+    Preset(String),
+}
+
+/// Scene options as the command line gives them; `None` means "not given".
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SceneOptions {
+    /// `--normals FILE` or `--sphere N`.
+    pub normals: Option<NormalsSource>,
+    /// `--env FILE`; the procedural environment if absent.
+    pub env: Option<PathBuf>,
+    /// `--env-size`.
+    pub env_size: Option<EnvSize>,
+    /// `--convention`.
+    pub convention: Option<Convention>,
+    /// `--material FILE` or `--preset NAME`.
+    pub material: Option<MaterialSource>,
+    /// `--fov DEG`: a perspective camera.
+    pub fov: Option<f64>,
+}
+
+/// What every scene of a batch shares.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Settings {
+    /// Size the environment maps are brought to.
+    pub env_size: EnvSize,
+    /// Texel convention.
+    pub convention: Convention,
+    /// Camera.
+    pub camera: Camera,
+}
+
+/// One scene to load, with where its result goes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SceneSpec {
+    /// Normals.
+    pub normals: NormalsSource,
+    /// Environment map file, or `None` for the procedural one.
+    pub env: Option<PathBuf>,
+    /// Material.
+    pub material: MaterialSource,
+    /// Output file (`render`) or folder (`grad`).
+    pub output: PathBuf,
+    /// Upstream gradient file (`grad` only).
+    pub upstream: Option<PathBuf>,
+}
+
+/// A whole run: shared settings and the scenes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Plan {
+    /// Shared settings.
+    pub settings: Settings,
+    /// The scenes, in batch order.
+    pub scenes: Vec<SceneSpec>,
+}
+
+/// A loaded batch, with remarks for the user (e.g. how many negative texels were clamped).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Loaded {
+    /// The batch, ready to render.
+    pub batch: Batch,
+    /// One line each, for stderr.
+    pub notes: Vec<String>,
+}
+
+fn settings(opts: &SceneOptions, manifest: Option<&Manifest>) -> Settings {
+    let env_size = manifest
+        .and_then(|m| m.env_size)
+        .or(opts.env_size)
+        .unwrap_or_default();
+    let convention = manifest
+        .and_then(|m| m.convention)
+        .or(opts.convention)
+        .unwrap_or_default();
+    let camera = match manifest.and_then(|m| m.fov).or(opts.fov) {
+        Some(fov_y_deg) => Camera::Perspective { fov_y_deg },
+        None => Camera::Orthographic,
+    };
+    Settings {
+        env_size,
+        convention,
+        camera,
+    }
+}
+
+impl Plan {
+    /// One scene from the command-line options.
+    pub fn single(opts: &SceneOptions, output: PathBuf, upstream: Option<PathBuf>) -> Plan {
+        Plan {
+            settings: settings(opts, None),
+            scenes: vec![SceneSpec {
+                normals: opts
+                    .normals
+                    .clone()
+                    .unwrap_or(NormalsSource::Sphere(DEFAULT_SPHERE)),
+                env: opts.env.clone(),
+                material: opts
+                    .material
+                    .clone()
+                    .unwrap_or_else(|| MaterialSource::Preset(crate::presets::DEFAULT.into())),
+                output,
+                upstream,
+            }],
+        }
+    }
+
+    /// The scenes of a manifest; what it leaves out comes from `opts` (and `upstream`, the
+    /// command line's `--upstream`), then the defaults.
+    pub fn from_manifest(
+        opts: &SceneOptions,
+        manifest: &Manifest,
+        upstream: Option<&Path>,
+    ) -> Plan {
+        let base = Plan::single(opts, PathBuf::new(), upstream.map(Path::to_path_buf));
+        let default = &base.scenes[0];
+        Plan {
+            settings: settings(opts, Some(manifest)),
+            scenes: manifest
+                .scenes
+                .iter()
+                .map(|s| SceneSpec {
+                    normals: s.normals.clone().unwrap_or_else(|| default.normals.clone()),
+                    env: s.env.clone().or_else(|| default.env.clone()),
+                    material: s
+                        .material
+                        .clone()
+                        .unwrap_or_else(|| default.material.clone()),
+                    output: s.output.clone(),
+                    upstream: s.upstream.clone().or_else(|| default.upstream.clone()),
+                })
+                .collect(),
+        }
+    }
+
+    /// Loads and checks every input and builds the batch. Files shared by several scenes
+    /// are read once.
+    pub fn load(&self) -> Result<Loaded> {
+        let s = self.settings;
+        s.camera.validate()?;
+        let mut notes = Vec::new();
+        let mut envs: HashMap<Option<PathBuf>, EnvMap> = HashMap::new();
+        let mut normals: HashMap<PathBuf, NormalMap> = HashMap::new();
+        let mut materials: HashMap<PathBuf, Material> = HashMap::new();
+        let mut scenes = Vec::with_capacity(self.scenes.len());
+        for spec in &self.scenes {
+            let env = match envs.get(&spec.env) {
+                Some(e) => e.clone(),
+                None => {
+                    let e = load_env_sized(spec.env.as_deref(), s, &mut notes)?;
+                    envs.insert(spec.env.clone(), e.clone());
+                    e
+                }
+            };
+            let n = match &spec.normals {
+                NormalsSource::Sphere(n) => {
+                    if *n == 0 || *n > MAX_IMAGE_SIDE {
+                        return Err(Error::Invalid(format!(
+                            "sphere size {n} must be between 1 and {MAX_IMAGE_SIDE}"
+                        )));
+                    }
+                    NormalMap::sphere(*n)
+                }
+                NormalsSource::File(p) => match normals.get(p) {
+                    Some(n) => n.clone(),
+                    None => {
+                        let n = super::load_normals(p)?;
+                        normals.insert(p.clone(), n.clone());
+                        n
+                    }
+                },
+            };
+            let material = match &spec.material {
+                MaterialSource::Preset(name) => crate::presets::lookup(name).ok_or_else(|| {
+                    Error::Invalid(format!(
+                        "unknown preset '{name}'; the presets are {}",
+                        crate::presets::names().join(", ")
+                    ))
+                })?,
+                MaterialSource::File(p) => match materials.get(p) {
+                    Some(m) => m.clone(),
+                    None => {
+                        let m = super::load_material(p)?;
+                        materials.insert(p.clone(), m.clone());
+                        m
+                    }
+                },
+            };
+            scenes.push(Scene {
+                normals: n,
+                env,
+                material,
+                camera: s.camera,
+            });
+        }
+        Ok(Loaded {
+            batch: Batch::new(scenes)?,
+            notes,
+        })
+    }
+
+    /// Loads the upstream gradient of every scene and checks it against the batch's image
+    /// size (for `grad`).
+    pub fn load_upstream(&self, batch: &Batch) -> Result<Vec<Image>> {
+        let (w, h) = batch.image_size();
+        self.scenes
+            .iter()
+            .enumerate()
+            .map(|(b, spec)| {
+                let Some(path) = &spec.upstream else {
+                    return Err(Error::Invalid(if self.scenes.len() > 1 {
+                        format!("scene {b} has no upstream gradient: give 'upstream' in the manifest or --upstream")
+                    } else {
+                        "no upstream gradient: give --upstream FILE".into()
+                    }));
+                };
+                let g = super::load_upstream(path)?;
+                if (g.width, g.height) != (w, h) {
+                    return Err(Error::file(
+                        path,
+                        format!(
+                            "is {}x{} (width x height) but the render is {w}x{h}; the upstream \
+                             gradient must match the normal map's size",
+                            g.width, g.height
+                        ),
+                    ));
+                }
+                Ok(g)
+            })
+            .collect()
+    }
+}
+
+/// Loads (or generates) an environment map at the plan's size and convention.
+fn load_env_sized(path: Option<&Path>, s: Settings, notes: &mut Vec<String>) -> Result<EnvMap> {
+    match path {
+        None => {
+            let (height, width) = match s.env_size {
+                EnvSize::Full => DEFAULT_ENV_SIZE,
+                EnvSize::Size { height, width } => (height, width),
+            };
+            Ok(crate::defaults::procedural_env(height, width, s.convention))
+        }
+        Some(p) => {
+            let loaded = super::load_env(p, s.convention)?;
+            if loaded.clamped > 0 {
+                notes.push(format!(
+                    "{}: clamped {} negative values to 0",
+                    p.display(),
+                    loaded.clamped
+                ));
+            }
+            resample::fit(loaded.env, s.env_size, p)
+        }
+    }
+}

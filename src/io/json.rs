@@ -1,0 +1,144 @@
+//! JSON files: materials (`{"name": ..., "ctrl": [108 numbers]}`) and material gradients
+//! (`{"ctrl": [108 numbers]}`).
+//!
+//! `ctrl` is in the flat order idx(k, s, t, j) = ((k * 3 + s) * 2 + t) * 6 + j: k the
+//! channel (R, G, B), s the lobe, t the coefficient (0 the scale m0, 1 the exponent m1),
+//! j the spline control point over theta_d in [0, pi/2].
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+use crate::material::{MAX_ABS_SCALE, MAX_EXPONENT, Material, N_PARAMS};
+use crate::spline::N_CTRL_POINTS;
+
+/// A material file as written on disk.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialFile {
+    /// A name for reports; the file name's stem if absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    /// A free-text description, ignored by matedit.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub description: Option<String>,
+    /// The 108 control points in flat order.
+    pub ctrl: Vec<f64>,
+}
+
+/// A material gradient file: dLoss/dctrl in the flat order.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct GradientFile {
+    /// The 108 partial derivatives.
+    pub ctrl: Vec<f32>,
+}
+
+/// Describes flat index `i`: `ctrl[7] (channel R, lobe 0, exponent m1, point 1)`.
+pub fn describe_index(i: usize) -> String {
+    let j = i % N_CTRL_POINTS;
+    let t = (i / N_CTRL_POINTS) % 2;
+    let s = (i / (N_CTRL_POINTS * 2)) % 3;
+    let k = i / (N_CTRL_POINTS * 6);
+    let channel = ["R", "G", "B"].get(k).copied().unwrap_or("?");
+    let coef = if t == 0 { "scale m0" } else { "exponent m1" };
+    format!("ctrl[{i}] (channel {channel}, lobe {s}, {coef}, point {j})")
+}
+
+/// Checks 108 control points and builds the material; the error message names the item
+/// (without the file name).
+pub fn material_from_ctrl(name: String, ctrl: &[f64]) -> std::result::Result<Material, String> {
+    if ctrl.len() != N_PARAMS {
+        return Err(format!(
+            "'ctrl' has {} numbers; a material has exactly {N_PARAMS} (3 channels x 3 lobes x \
+             2 coefficients x 6 control points, index ((k*3 + s)*2 + t)*6 + j)",
+            ctrl.len()
+        ));
+    }
+    for (i, &v) in ctrl.iter().enumerate() {
+        let is_exponent = (i / N_CTRL_POINTS) % 2 == 1;
+        let why = if !v.is_finite() {
+            Some("is not a finite number".to_string())
+        } else if is_exponent && v < 0.0 {
+            Some(format!("is {v}; exponents must be >= 0"))
+        } else if is_exponent && v > MAX_EXPONENT {
+            Some(format!("is {v}; exponents must be <= {MAX_EXPONENT}"))
+        } else if !is_exponent && v.abs() > MAX_ABS_SCALE {
+            Some(format!("is {v}; scales must be within +-{MAX_ABS_SCALE}"))
+        } else {
+            None
+        };
+        if let Some(why) = why {
+            return Err(format!("{} {why}", describe_index(i)));
+        }
+    }
+    Material::new(name, ctrl).map_err(|e| {
+        let m = e.to_string();
+        m.strip_prefix("material: ")
+            .map(str::to_string)
+            .unwrap_or(m)
+    })
+}
+
+/// Reads a material JSON file.
+pub fn read_material(path: &Path) -> Result<Material> {
+    let bytes = super::read_bytes(path)?;
+    let file: MaterialFile = serde_json::from_slice(&bytes)
+        .map_err(|e| Error::file(path, format!("not a material file: {e}")))?;
+    let name = file.name.unwrap_or_else(|| {
+        path.file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default()
+    });
+    material_from_ctrl(name, &file.ctrl).map_err(|m| Error::file(path, m))
+}
+
+/// Encodes a material as pretty JSON, one control point a line in the flat order.
+pub fn encode_material(material: &Material, description: Option<&str>) -> Vec<u8> {
+    let file = MaterialFile {
+        name: Some(material.name.clone()),
+        description: description.map(str::to_string),
+        ctrl: material.ctrl.to_vec(),
+    };
+    let mut out = serde_json::to_vec_pretty(&file).unwrap_or_default();
+    out.push(b'\n');
+    out
+}
+
+/// Encodes dLoss/dctrl as `{"ctrl": [108 numbers]}`.
+pub fn encode_gradient(d_ctrl: &[f32; N_PARAMS]) -> Vec<u8> {
+    let file = GradientFile {
+        ctrl: d_ctrl.to_vec(),
+    };
+    let mut out = serde_json::to_vec_pretty(&file).unwrap_or_default();
+    out.push(b'\n');
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn index_description() {
+        assert_eq!(
+            describe_index(7),
+            "ctrl[7] (channel R, lobe 0, exponent m1, point 1)"
+        );
+        assert_eq!(
+            describe_index(107),
+            "ctrl[107] (channel B, lobe 2, exponent m1, point 5)"
+        );
+    }
+
+    #[test]
+    fn validation_messages() {
+        let mut c = vec![0.5; 108];
+        assert!(material_from_ctrl("a".into(), &c).is_ok());
+        c[6] = -1.0;
+        let e = material_from_ctrl("a".into(), &c).unwrap_err();
+        assert!(e.contains("ctrl[6]") && e.contains(">= 0"), "{e}");
+        let e = material_from_ctrl("a".into(), &c[..107]).unwrap_err();
+        assert!(e.contains("107") && e.contains("108"), "{e}");
+    }
+}

@@ -1,0 +1,221 @@
+//! PNG files: 8-bit (or 16-bit) normal maps in, 8-bit sRGB previews of linear renders out.
+//!
+//! Normal maps: channel value v (0..=255, or 0..=65535 for 16-bit files) encodes
+//! n = 2 v / max - 1. A pixel with alpha 0, or with R = G = B = 0, is background.
+//!
+//! Previews: each linear channel value v becomes `v * 2^exposure`, then the tonemap
+//! (`clamp`: unchanged; `reinhard`: x / (1 + x)), then it is clamped to [0, 1], encoded
+//! with the sRGB transfer function and rounded to 8 bits.
+
+use std::io::Cursor;
+use std::path::Path;
+
+use crate::error::{Error, Result};
+use crate::scene::Image;
+
+/// How linear radiance is mapped to display values in a preview.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Tonemap {
+    /// Values above 1 (after exposure) clip to white.
+    #[default]
+    Clamp,
+    /// x / (1 + x) per channel: nothing clips, highlights compress.
+    Reinhard,
+}
+
+impl std::str::FromStr for Tonemap {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        match s {
+            "clamp" => Ok(Tonemap::Clamp),
+            "reinhard" => Ok(Tonemap::Reinhard),
+            _ => Err(format!(
+                "unknown tonemap '{s}': expected 'clamp' or 'reinhard'"
+            )),
+        }
+    }
+}
+
+/// Settings for 8-bit previews.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Preview {
+    /// Exposure in stops: values are multiplied by 2^exposure before the tonemap.
+    pub exposure: f32,
+    /// The tonemap applied after the exposure.
+    pub tonemap: Tonemap,
+}
+
+/// The sRGB transfer function (linear [0, 1] to encoded [0, 1]).
+pub fn srgb_encode(x: f32) -> f32 {
+    if x <= 0.003_130_8 {
+        12.92 * x
+    } else {
+        1.055 * x.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// The 8-bit display value of linear channel value `v` under `preview`.
+pub fn display_value(v: f32, preview: &Preview) -> u8 {
+    let x = v * preview.exposure.exp2();
+    let y = match preview.tonemap {
+        Tonemap::Clamp => x,
+        Tonemap::Reinhard => x / (1.0 + x),
+    };
+    // NaN fails both comparisons in clamp's guard, so map it to 0 explicitly.
+    let y = if y.is_nan() { 0.0 } else { y.clamp(0.0, 1.0) };
+    (srgb_encode(y) * 255.0).round() as u8
+}
+
+/// Encodes an 8-bit sRGB RGB preview of a linear image.
+pub fn encode_preview(image: &Image, preview: &Preview) -> Result<Vec<u8>> {
+    let data: Vec<u8> = image
+        .pixels
+        .iter()
+        .flat_map(|p| p.map(|v| display_value(v, preview)))
+        .collect();
+    encode_rgb8(image.width, image.height, &data)
+}
+
+/// Encodes 8-bit RGB data (row-major, 3 bytes a pixel) as a PNG tagged sRGB.
+pub fn encode_rgb8(width: usize, height: usize, data: &[u8]) -> Result<Vec<u8>> {
+    let (w, h) = (
+        u32::try_from(width)
+            .map_err(|_| Error::Invalid(format!("PNG width {width} is too large")))?,
+        u32::try_from(height)
+            .map_err(|_| Error::Invalid(format!("PNG height {height} is too large")))?,
+    );
+    let mut out = Vec::new();
+    let mut enc = png::Encoder::new(&mut out, w, h);
+    enc.set_color(png::ColorType::Rgb);
+    enc.set_depth(png::BitDepth::Eight);
+    enc.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
+    let mut writer = enc
+        .write_header()
+        .map_err(|e| Error::Invalid(format!("cannot encode PNG: {e}")))?;
+    writer
+        .write_image_data(data)
+        .map_err(|e| Error::Invalid(format!("cannot encode PNG: {e}")))?;
+    writer
+        .finish()
+        .map_err(|e| Error::Invalid(format!("cannot encode PNG: {e}")))?;
+    Ok(out)
+}
+
+/// A decoded PNG: 8- or 16-bit samples widened to u16, with the maximum value.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Decoded {
+    /// Columns.
+    pub width: usize,
+    /// Rows.
+    pub height: usize,
+    /// Channels per pixel after palette expansion: 1 (grey), 2 (grey, alpha), 3 (RGB) or
+    /// 4 (RGBA).
+    pub channels: usize,
+    /// 8 or 16.
+    pub bit_depth: u8,
+    /// Samples, row-major, `channels` per pixel.
+    pub samples: Vec<u16>,
+}
+
+impl Decoded {
+    /// The largest sample value of the bit depth (255 or 65535).
+    pub fn max_value(&self) -> f64 {
+        if self.bit_depth == 16 { 65535.0 } else { 255.0 }
+    }
+}
+
+/// Decodes a PNG file (palette and low bit depths expanded to 8 bits).
+pub fn decode(path: &Path) -> Result<Decoded> {
+    let bytes = super::read_bytes(path)?;
+    let bad = |e: png::DecodingError| Error::file(path, format!("not a readable PNG file: {e}"));
+    // The default 64 MiB limit refuses 16-bit RGBA maps above ~2800 x 2800; allow 1 GiB.
+    let limits = png::Limits { bytes: 1 << 30 };
+    let mut dec = png::Decoder::new_with_limits(Cursor::new(&bytes[..]), limits);
+    dec.set_transformations(png::Transformations::EXPAND);
+    let mut reader = dec.read_info().map_err(bad)?;
+    let size = reader
+        .output_buffer_size()
+        .ok_or_else(|| Error::file(path, "PNG image is too large"))?;
+    let mut buf = vec![0u8; size];
+    let info = reader.next_frame(&mut buf).map_err(bad)?;
+    let channels = info.color_type.samples();
+    let (width, height) = (info.width as usize, info.height as usize);
+    let bit_depth = match info.bit_depth {
+        png::BitDepth::Sixteen => 16,
+        _ => 8,
+    };
+    let mut samples = Vec::with_capacity(width * height * channels);
+    for row in buf.chunks(info.line_size).take(height) {
+        if bit_depth == 16 {
+            samples.extend(
+                row.chunks_exact(2)
+                    .take(width * channels)
+                    .map(|c| u16::from_be_bytes([c[0], c[1]])),
+            );
+        } else {
+            samples.extend(row.iter().take(width * channels).map(|&v| v as u16));
+        }
+    }
+    Ok(Decoded {
+        width,
+        height,
+        channels,
+        bit_depth,
+        samples,
+    })
+}
+
+/// Reads a PNG normal map: n = 2 v / max - 1 per channel, background (returned as
+/// [0, 0, 0]) where alpha is 0 or R = G = B = 0. Normals are not yet normalised.
+pub fn read_normals(path: &Path) -> Result<(usize, usize, Vec<[f64; 3]>)> {
+    let d = decode(path)?;
+    if d.channels < 3 {
+        return Err(Error::file(
+            path,
+            "the PNG is greyscale; a normal map needs RGB channels (n.x, n.y, n.z)",
+        ));
+    }
+    let max = d.max_value();
+    let normals = d
+        .samples
+        .chunks_exact(d.channels)
+        .map(|p| {
+            let transparent = d.channels == 4 && p[3] == 0;
+            if transparent || (p[0] == 0 && p[1] == 0 && p[2] == 0) {
+                [0.0; 3]
+            } else {
+                [0, 1, 2].map(|c| 2.0 * p[c] as f64 / max - 1.0)
+            }
+        })
+        .collect();
+    Ok((d.width, d.height, normals))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn display_values() {
+        let p = Preview::default();
+        assert_eq!(display_value(0.0, &p), 0);
+        assert_eq!(display_value(1.0, &p), 255);
+        assert_eq!(display_value(7.0, &p), 255);
+        assert_eq!(display_value(-1.0, &p), 0);
+        assert_eq!(display_value(f32::NAN, &p), 0);
+        // 0.5 linear is 0.7354 in sRGB: 188.
+        assert_eq!(display_value(0.5, &p), 188);
+        // one stop down: 1.0 -> 0.5
+        let dark = Preview {
+            exposure: -1.0,
+            ..p
+        };
+        assert_eq!(display_value(1.0, &dark), 188);
+        // Reinhard: 1.0 -> 0.5
+        let r = Preview {
+            tonemap: Tonemap::Reinhard,
+            ..p
+        };
+        assert_eq!(display_value(1.0, &r), 188);
+    }
+}
