@@ -115,13 +115,44 @@ impl Renderer {
     }
 
     /// One image per scene of the batch.
+    ///
+    /// Valid inputs keep every value far inside f32 (see docs/CONVENTIONS.md), but an
+    /// output that still overflows is an error naming it, never a silent inf or NaN.
     pub fn render(&self, batch: &Batch) -> Result<Vec<Image>> {
-        self.backend.render(batch)
+        let images = self.backend.render(batch)?;
+        for (b, img) in images.iter().enumerate() {
+            check_finite("image", b, img.width, &img.pixels)?;
+        }
+        Ok(images)
     }
 
     /// dLoss/dL, dLoss/dn and dLoss/dctrl per scene, given dLoss/dImage per scene.
     pub fn backward(&self, batch: &Batch, upstream: &[Image]) -> Result<Vec<Gradients>> {
         batch.check_upstream(upstream)?;
-        self.backend.backward(batch, upstream)
+        let grads = self.backend.backward(batch, upstream)?;
+        let env_w = batch.scenes()[0].env.width;
+        for (b, g) in grads.iter().enumerate() {
+            check_finite("d_env", b, env_w, &g.d_env)?;
+            check_finite("d_normals", b, batch.image_size().0, &g.d_normals)?;
+            if let Some(i) = g.d_ctrl.iter().position(|v| !v.is_finite()) {
+                return Err(Error::Invalid(format!(
+                    "d_ctrl: scene {b} control point {i} overflowed f32; scale the upstream gradient down"
+                )));
+            }
+        }
+        Ok(grads)
+    }
+}
+
+/// An error naming the first non-finite element of an output.
+fn check_finite(what: &str, scene: usize, width: usize, v: &[[f32; 3]]) -> Result<()> {
+    match v.iter().position(|p| p.iter().any(|x| !x.is_finite())) {
+        None => Ok(()),
+        Some(i) => Err(Error::Invalid(format!(
+            "{what}: scene {scene} element (column {}, row {}) overflowed f32; scale the radiance, \
+             the material's scales or the upstream gradient down",
+            i % width.max(1),
+            i / width.max(1)
+        ))),
     }
 }
