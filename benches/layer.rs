@@ -16,14 +16,33 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
+/// This process's user + system CPU seconds (Linux; 0 elsewhere): less sensitive than
+/// wall time to other load on a small machine.
+fn cpu_seconds() -> f64 {
+    let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else {
+        return 0.0;
+    };
+    // fields after the command name (which is in parentheses): utime is the 12th, stime the 13th
+    let rest = stat.rsplit_once(')').map_or("", |(_, r)| r);
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let field = |i: usize| f.get(i).and_then(|v| v.parse::<f64>().ok()).unwrap_or(0.0);
+    (field(11) + field(12)) / 100.0
+}
+
 fn time<T>(reps: usize, mut f: impl FnMut() -> T) -> (f64, T) {
     let mut out = f(); // warm-up
     let mut t = Vec::new();
+    let c0 = cpu_seconds();
     for _ in 0..reps {
         let s = Instant::now();
         out = f();
         t.push(s.elapsed().as_secs_f64());
     }
+    eprintln!(
+        "  (cpu-s per run {:.2}, wall {:.2})",
+        (cpu_seconds() - c0) / reps as f64,
+        median(t.clone())
+    );
     (median(t), out)
 }
 
