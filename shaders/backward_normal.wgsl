@@ -29,13 +29,18 @@ fn backward_normal(@builtin(global_invocation_id) gid: vec3<u32>) {
             let h = texels[i].h.xyz;
             let x = max(0.0, dot(h, n));
             let lnx = lobe_log(x);
-            let fr = lobe_sum_dx(x, lnx, texels[i].coef[0].xyz, texels[i].coef[1].xyz);
-            let fg = lobe_sum_dx(x, lnx, texels[i].coef[2].xyz, texels[i].coef[3].xyz);
-            let fb = lobe_sum_dx(x, lnx, texels[i].coef[4].xyz, texels[i].coef[5].xyz);
+            // constant lobes are in fconst (no dependence on x); lobes with scale 0 are left out
+            var f = texels[i].fconst.xyz;
+            var dx = vec3<f32>(0.0);
+            for (var a = 0u; a < params.n_lobes; a++) {
+                let m0 = texels[i].lobes[2u * a].xyz;
+                let m1 = texels[i].lobes[2u * a + 1u].xyz;
+                let e = stable_expm1(m0 * lobe_pow(x, lnx, m1));
+                f += e;
+                dx += (e + 1.0) * m0 * lobe_dpow(x, lnx, m1);
+            }
             let gl = g * texels[i].ld.xyz;
-            let along_w = gl.x * fr.x + gl.y * fg.x + gl.z * fb.x;
-            let along_h = gl.x * fr.y + gl.y * fg.y + gl.z * fb.y;
-            acc += along_w * w + (c * along_h) * h;
+            acc += dot(gl, f) * w + (c * dot(gl, dx)) * h;
         }
     } else {
         for (var i = 0u; i < params.n_texels; i++) {

@@ -2,8 +2,8 @@
 // src/gpu/layout.rs, checked by tests/shaders.rs), the spline basis (mirrors src/spline.rs),
 // the half vector and the lobe math (mirror src/cpu/common.rs). No entry point.
 
-// Texels per uniform chunk: 448 * 144 bytes = 64512 bytes <= 64 KiB, a multiple of 256.
-const TEXEL_CHUNK: u32 = 448u;
+// Texels per uniform chunk: 252 * 256 bytes = 64512 bytes <= 64 KiB, a multiple of 256.
+const TEXEL_CHUNK: u32 = 252u;
 // Pixels per uniform chunk: 1344 * 48 bytes = 64512 bytes.
 const PIXEL_CHUNK: u32 = 1344u;
 // Threads per workgroup in every pass.
@@ -25,6 +25,11 @@ struct Params {
     first: u32,
     // 1: perspective camera, so h, theta_d and the coefficients depend on the pair
     perspective: u32,
+    // orthographic camera: the number of active lobes in Texel.lobes
+    n_lobes: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
     // cc[(k * 2 + t) * 6 + j] = (ctrl[idx(k, 0, t, j)], ctrl[idx(k, 1, t, j)], ctrl[idx(k, 2, t, j)], 0)
     cc: array<vec4<f32>, 36>,
 }
@@ -37,8 +42,12 @@ struct Texel {
     h: vec4<f32>,
     // xyz: L^k(i) d_omega_i
     ld: vec4<f32>,
+    // orthographic camera, xyz: per channel, the constant lobes' share of f
+    fconst: vec4<f32>,
     // orthographic camera: coef[k * 2 + t] = (m_{0,t}^k, m_{1,t}^k, m_{2,t}^k, 0) at theta_d
     coef: array<vec4<f32>, 6>,
+    // orthographic camera, the active lobes over channels: lobes[2a] = m0 (R, G, B), lobes[2a + 1] = m1
+    lobes: array<vec4<f32>, 6>,
 }
 
 // One foreground pixel. Kept in sync with `Pixel` in src/gpu/layout.rs.

@@ -26,11 +26,13 @@ fn forward(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
             let x = max(0.0, dot(texels[i].h.xyz, n));
             let lnx = lobe_log(x);
-            let f = vec3<f32>(
-                lobe_sum(x, lnx, texels[i].coef[0].xyz, texels[i].coef[1].xyz),
-                lobe_sum(x, lnx, texels[i].coef[2].xyz, texels[i].coef[3].xyz),
-                lobe_sum(x, lnx, texels[i].coef[4].xyz, texels[i].coef[5].xyz),
-            );
+            // constant lobes are in fconst; lobes with scale 0 are left out
+            var f = texels[i].fconst.xyz;
+            for (var a = 0u; a < params.n_lobes; a++) {
+                let m0 = texels[i].lobes[2u * a].xyz;
+                let m1 = texels[i].lobes[2u * a + 1u].xyz;
+                f += stable_expm1(m0 * lobe_pow(x, lnx, m1));
+            }
             acc += f * texels[i].ld.xyz * c;
         }
     } else {

@@ -33,6 +33,10 @@ pub struct TexelRec {
     pub theta_d: f64,
     /// Orthographic cameras: the 18 coefficients at theta_d.
     pub coef: [f64; N_COEF_VALUES],
+    /// Orthographic cameras: per channel, the sum over the material's constant lobes
+    /// (exponent 0 everywhere, so x^0 = 1) of exp(m0) - 1: their share of f, the same
+    /// for every pixel.
+    pub fconst: [f64; 3],
 }
 
 /// One foreground pixel.
@@ -68,6 +72,31 @@ pub struct Prepared {
     /// Positions in `texels` of the lit ones (some L^k > 0): the only ones that add to the
     /// image, dLoss/dn or dLoss/dctrl.
     pub lit: Vec<usize>,
+    /// The lobes whose share of f depends on x (some scale and some exponent control point
+    /// non-zero), in order: the only ones the image and dLoss/dn evaluate per pair. Lobes
+    /// with every scale 0 add nothing; lobes with every exponent 0 are in `fconst`.
+    pub active_lobes: Vec<usize>,
+}
+
+/// The material's lobes that depend on x (see [`Prepared::active_lobes`]) and the constant
+/// ones (every exponent control point 0, some scale non-zero).
+pub fn classify_lobes(ctrl: &[f64; N_PARAMS]) -> (Vec<usize>, Vec<usize>) {
+    let all_zero = |s: usize, t: usize| {
+        (0..3).all(|k| (0..N_CTRL_POINTS).all(|j| ctrl[crate::material::idx(k, s, t, j)] == 0.0))
+    };
+    let mut active = Vec::new();
+    let mut constant = Vec::new();
+    for s in 0..3 {
+        if all_zero(s, 0) {
+            continue;
+        }
+        if all_zero(s, 1) {
+            constant.push(s);
+        } else {
+            active.push(s);
+        }
+    }
+    (active, constant)
 }
 
 /// Dot product.
@@ -137,6 +166,7 @@ impl Prepared {
         camera: Camera,
     ) -> Self {
         let ortho_wp = [0.0, 0.0, 1.0];
+        let (active_lobes, const_lobes) = classify_lobes(ctrl);
         let mut texels = Vec::with_capacity(env_height * env_width);
         let mut lit = Vec::new();
         for r in 0..env_height {
@@ -154,6 +184,14 @@ impl Prepared {
                 } else {
                     [0.0; N_COEF_VALUES]
                 };
+                let mut fconst = [0.0; 3];
+                if camera.is_orthographic() {
+                    for (k, f) in fconst.iter_mut().enumerate() {
+                        for &s in &const_lobes {
+                            *f += coef[(k * 3 + s) * 2].exp_m1();
+                        }
+                    }
+                }
                 if ld.iter().any(|&v| v != 0.0) {
                     lit.push(texels.len());
                 }
@@ -165,6 +203,7 @@ impl Prepared {
                     h,
                     theta_d,
                     coef,
+                    fconst,
                 });
             }
         }
@@ -186,6 +225,7 @@ impl Prepared {
             pixels,
             texels,
             lit,
+            active_lobes,
         }
     }
 }

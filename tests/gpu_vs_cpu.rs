@@ -303,3 +303,26 @@ fn inputs_over_the_binding_limit_are_split() {
     s.normals = NormalMap::sphere(20);
     compare_on(&g, "split ranges", &Batch::single(s).unwrap());
 }
+
+#[test]
+fn forward_backward_presets_with_constant_and_zero_lobes() {
+    // the built-in presets have diffuse (constant) lobes and unused (scale 0) lobes
+    let mut rng = Rng::new(19);
+    let scenes = ["plastic-red", "matte-white", "gold"]
+        .iter()
+        .map(|name| {
+            let mut s = random_scene(
+                &mut rng,
+                10,
+                9,
+                16,
+                32,
+                Convention::Equirect,
+                Camera::Orthographic,
+            );
+            s.material = matedit::presets::lookup(name).expect("preset");
+            s
+        })
+        .collect();
+    compare("presets", &Batch::new(scenes).unwrap());
+}

@@ -111,6 +111,10 @@ fn central(raw: &Raw, g: &[[f64; 3]], step: f64, set: impl Fn(&mut Raw, f64)) ->
 
 fn check(convention: Convention, camera: Camera, seed: u64) {
     let raw = random_raw(seed, convention, camera);
+    check_raw(raw, seed, &format!("{convention:?} {camera:?} seed {seed}"));
+}
+
+fn check_raw(raw: Raw, seed: u64, what: &str) {
     let g = upstream(seed, raw.w * raw.h);
     let an = cpu::backward(&raw.prepare(), &g);
 
@@ -136,7 +140,6 @@ fn check(convention: Convention, camera: Camera, seed: u64) {
         .map(|c| central(&raw, &g, 1e-5, |r, d| r.ctrl[c] += d))
         .collect();
 
-    let what = format!("{convention:?} {camera:?} seed {seed}");
     let scale = |v: &[f64]| v.iter().fold(0.0f64, |a, b| a.max(b.abs()));
     // 1e-6 relative, with an absolute floor of 1e-9 of the largest entry for entries that
     // are (near) zero
@@ -174,6 +177,23 @@ fn gradcheck_equirect_orthographic() {
     for seed in [1, 2] {
         check(Convention::Equirect, Camera::Orthographic, seed);
     }
+}
+
+/// A material with a constant lobe (every exponent 0) and a lobe of scale 0, which the
+/// image and dn leave out of the per-pair loop: finite differences cross from "left out"
+/// to "evaluated", so they check that leaving them out changes nothing.
+#[test]
+fn gradcheck_constant_and_zero_lobes() {
+    let mut raw = random_raw(8, Convention::Equirect, Camera::Orthographic);
+    for k in 0..3 {
+        for j in 0..6 {
+            raw.ctrl[matedit::material::idx(k, 1, 1, j)] = 0.0; // lobe 1: constant
+            raw.ctrl[matedit::material::idx(k, 2, 0, j)] = 0.0; // lobe 2: scale 0
+        }
+    }
+    let prep = raw.prepare();
+    assert_eq!(prep.active_lobes, vec![0]);
+    check_raw(raw, 8, "constant and zero lobes");
 }
 
 #[test]

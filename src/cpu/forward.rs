@@ -2,7 +2,7 @@
 
 use rayon::prelude::*;
 
-use super::common::{channel_coef, lobe_log, lobe_sum, pair_terms};
+use super::common::{channel_coef, lobe_log, lobe_pow, lobe_sum, pair_terms, stable_expm1};
 use crate::prepare::{Prepared, dot};
 
 /// The image of a prepared scene, row-major, 0 on background pixels.
@@ -24,8 +24,19 @@ pub fn forward(prep: &Prepared) -> Vec<[f64; 3]> {
                 let x = dot(h, n).max(0.0);
                 let lnx = lobe_log(x);
                 for k in 0..3 {
-                    let (m0, m1) = channel_coef(&m, k);
-                    acc[k] += lobe_sum(x, lnx, m0, m1) * t.ld[k] * c;
+                    let f = if perspective {
+                        let (m0, m1) = channel_coef(&m, k);
+                        lobe_sum(x, lnx, m0, m1)
+                    } else {
+                        // constant lobes are in fconst; lobes with scale 0 are left out
+                        let mut f = t.fconst[k];
+                        for &s in &prep.active_lobes {
+                            let (m0, m1) = (m[(k * 3 + s) * 2], m[(k * 3 + s) * 2 + 1]);
+                            f += stable_expm1(m0 * lobe_pow(x, lnx, m1));
+                        }
+                        f
+                    };
+                    acc[k] += f * t.ld[k] * c;
                 }
             }
             acc

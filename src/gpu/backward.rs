@@ -42,9 +42,17 @@ fn encode_texel(
         .filter(|&n| n > 0)
         .collect();
     let d_ctrl = output(device, "d_ctrl", SHARE_BYTES);
-    let texels: Vec<Texel> = prep.texels.iter().map(Texel::from).collect();
+    let texels: Vec<Texel> = prep
+        .texels
+        .iter()
+        .map(|t| Texel::new(t, &prep.active_lobes))
+        .collect();
     let range = r.max_records(SHARE_BYTES);
-    let base = Params::new(&prep.ctrl, !prep.camera.is_orthographic());
+    let base = Params::new(
+        &prep.ctrl,
+        !prep.camera.is_orthographic(),
+        prep.active_lobes.len(),
+    );
     let mut d_env_slots = Vec::new();
     for (ri, part) in texels.chunks(range).enumerate() {
         let nt = part.len() as u32;

@@ -12,7 +12,7 @@ pub(super) fn lit_chunks(r: &GpuRenderer, prep: &Prepared) -> (wgpu::Buffer, Vec
     let lit: Vec<Texel> = prep
         .lit
         .iter()
-        .map(|&i| Texel::from(&prep.texels[i]))
+        .map(|&i| Texel::new(&prep.texels[i], &prep.active_lobes))
         .collect();
     let (buf, n_chunks) = uniform_chunks(&r.ctx.device, "lit texels", &lit, TEXEL_CHUNK);
     let sizes = (0..n_chunks)
@@ -40,7 +40,11 @@ pub(super) fn encode_per_pixel(
     for part in pixels.chunks(range.max(1)) {
         let n = part.len() as u32;
         let mut table = ParamsTable::default();
-        let base = Params::new(&prep.ctrl, !prep.camera.is_orthographic());
+        let base = Params::new(
+            &prep.ctrl,
+            !prep.camera.is_orthographic(),
+            prep.active_lobes.len(),
+        );
         let offsets: Vec<u32> = chunk_sizes
             .iter()
             .enumerate()

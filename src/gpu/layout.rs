@@ -7,12 +7,12 @@ use crate::material::{N_PARAMS, idx};
 use crate::prepare::{PixelRec, TexelRec};
 
 /// Texels per uniform chunk (`TEXEL_CHUNK` in common.wgsl).
-pub const TEXEL_CHUNK: usize = 448;
+pub const TEXEL_CHUNK: usize = 252;
 /// Pixels per uniform chunk (`PIXEL_CHUNK` in common.wgsl).
 pub const PIXEL_CHUNK: usize = 1344;
 /// Threads per workgroup (`WG` in common.wgsl).
 pub const WG: usize = 64;
-/// Bytes of one uniform chunk (of texels or of pixels): under 64 KiB, a multiple of 256.
+/// Bytes of one uniform chunk of texels or of pixels: under 64 KiB, a multiple of 256.
 pub const CHUNK_BYTES: u64 = (TEXEL_CHUNK * size_of::<Texel>()) as u64;
 const _: () = assert!(CHUNK_BYTES == (PIXEL_CHUNK * size_of::<Pixel>()) as u64);
 const _: () = assert!(CHUNK_BYTES <= 65536 && CHUNK_BYTES.is_multiple_of(256));
@@ -29,6 +29,10 @@ pub struct Params {
     pub first: u32,
     /// 1 for a perspective camera.
     pub perspective: u32,
+    /// Lobes in `Texel::lobes` (orthographic cameras).
+    pub n_lobes: u32,
+    /// Padding to 16 bytes.
+    pub _pad: [u32; 3],
     /// cc[(k * 2 + t) * 6 + j] = the control points j of coefficient t of channel k's three lobes.
     pub cc: [[f32; 4]; 36],
 }
@@ -40,7 +44,7 @@ pub const PARAMS_STRIDE: u64 = size_of::<Params>().next_multiple_of(256) as u64;
 
 impl Params {
     /// Params with the material's control points rearranged for `pair_coef`.
-    pub fn new(ctrl: &[f64; N_PARAMS], perspective: bool) -> Self {
+    pub fn new(ctrl: &[f64; N_PARAMS], perspective: bool, n_lobes: usize) -> Self {
         let mut cc = [[0.0f32; 4]; 36];
         for k in 0..3 {
             for t in 0..2 {
@@ -56,6 +60,8 @@ impl Params {
             n_texels: 0,
             first: 0,
             perspective: perspective as u32,
+            n_lobes: n_lobes as u32,
+            _pad: [0; 3],
             cc,
         }
     }
@@ -71,13 +77,19 @@ pub struct Texel {
     pub h: [f32; 4],
     /// xyz: L^k d_omega.
     pub ld: [f32; 4],
+    /// xyz: per channel, the constant lobes' share of f.
+    pub fconst: [f32; 4],
     /// coef[k * 2 + t] = (m_{0,t}^k, m_{1,t}^k, m_{2,t}^k, 0).
     pub coef: [[f32; 4]; 6],
+    /// The active lobes over channels: lobes[2a] = m0 (R, G, B, 0) and lobes[2a + 1] = m1
+    /// of the a-th active lobe.
+    pub lobes: [[f32; 4]; 6],
 }
 const _: () = assert!(size_of::<Texel>().is_multiple_of(16));
 
-impl From<&TexelRec> for Texel {
-    fn from(t: &TexelRec) -> Self {
+impl Texel {
+    /// The GPU record of a texel, with `active` the material's active lobes.
+    pub fn new(t: &TexelRec, active: &[usize]) -> Self {
         let mut coef = [[0.0f32; 4]; 6];
         for k in 0..3 {
             for tt in 0..2 {
@@ -86,7 +98,18 @@ impl From<&TexelRec> for Texel {
                 }
             }
         }
+        let mut lobes = [[0.0f32; 4]; 6];
+        for (a, &s) in active.iter().enumerate() {
+            for tt in 0..2 {
+                for k in 0..3 {
+                    lobes[a * 2 + tt][k] = t.coef[(k * 3 + s) * 2 + tt] as f32;
+                }
+            }
+        }
+        let v4 = |v: [f64; 3], w: f64| [v[0] as f32, v[1] as f32, v[2] as f32, w as f32];
         Texel {
+            fconst: v4(t.fconst, 0.0),
+            lobes,
             w: [
                 t.w[0] as f32,
                 t.w[1] as f32,
