@@ -6,7 +6,9 @@
 // share_i[idx(k, s, t, j)] = L^k d_omega sum_p G^k c E_s (x^m1_s, m0_s x^m1_s ln x)[t] B_j(theta_d)
 //
 // Orthographic cameras (theta_d per texel) sum 6 vectors over pixels and apply the texel's
-// basis at the end; perspective cameras apply each pair's basis inside the loop.
+// basis at the end; perspective cameras apply each pair's basis inside the loop. The 36
+// sums are named variables, not an indexed private array: that is slow on SIMD backends
+// such as lavapipe.
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<uniform> pixels: array<Pixel, PIXEL_CHUNK>;
@@ -14,6 +16,21 @@
 @group(0) @binding(3) var<storage, read_write> d_env: array<vec4<f32>>;
 // 108 per texel, in the material's flat order
 @group(0) @binding(4) var<storage, read_write> d_share: array<f32>;
+
+// Writes (first chunk) or adds the share of channel k, coefficient t, control point j of
+// texel i, given over the three lobes.
+fn put_share(i: u32, k: u32, t: u32, j: u32, v: vec3<f32>, first: bool) {
+    let o = i * 108u + (k * 6u + t) * 6u + j;
+    if first {
+        d_share[o] = v.x;
+        d_share[o + 12u] = v.y;
+        d_share[o + 24u] = v.z;
+    } else {
+        d_share[o] += v.x;
+        d_share[o + 12u] += v.y;
+        d_share[o + 24u] += v.z;
+    }
+}
 
 @compute @workgroup_size(WG)
 fn backward_texel(@builtin(global_invocation_id) gid: vec3<u32>) {
@@ -23,8 +40,43 @@ fn backward_texel(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let w = texels[i].w.xyz;
     var acc_l = vec3<f32>(0.0);
-    // acc[(k * 2 + t) * 6 + j], over lobes
-    var acc: array<vec3<f32>, 36>;
+    // a_KT_J: channel K, coefficient T (0 scale, 1 exponent), control point J; over lobes
+    var a_r0_0 = vec3<f32>(0.0);
+    var a_r0_1 = vec3<f32>(0.0);
+    var a_r0_2 = vec3<f32>(0.0);
+    var a_r0_3 = vec3<f32>(0.0);
+    var a_r0_4 = vec3<f32>(0.0);
+    var a_r0_5 = vec3<f32>(0.0);
+    var a_r1_0 = vec3<f32>(0.0);
+    var a_r1_1 = vec3<f32>(0.0);
+    var a_r1_2 = vec3<f32>(0.0);
+    var a_r1_3 = vec3<f32>(0.0);
+    var a_r1_4 = vec3<f32>(0.0);
+    var a_r1_5 = vec3<f32>(0.0);
+    var a_g0_0 = vec3<f32>(0.0);
+    var a_g0_1 = vec3<f32>(0.0);
+    var a_g0_2 = vec3<f32>(0.0);
+    var a_g0_3 = vec3<f32>(0.0);
+    var a_g0_4 = vec3<f32>(0.0);
+    var a_g0_5 = vec3<f32>(0.0);
+    var a_g1_0 = vec3<f32>(0.0);
+    var a_g1_1 = vec3<f32>(0.0);
+    var a_g1_2 = vec3<f32>(0.0);
+    var a_g1_3 = vec3<f32>(0.0);
+    var a_g1_4 = vec3<f32>(0.0);
+    var a_g1_5 = vec3<f32>(0.0);
+    var a_b0_0 = vec3<f32>(0.0);
+    var a_b0_1 = vec3<f32>(0.0);
+    var a_b0_2 = vec3<f32>(0.0);
+    var a_b0_3 = vec3<f32>(0.0);
+    var a_b0_4 = vec3<f32>(0.0);
+    var a_b0_5 = vec3<f32>(0.0);
+    var a_b1_0 = vec3<f32>(0.0);
+    var a_b1_1 = vec3<f32>(0.0);
+    var a_b1_2 = vec3<f32>(0.0);
+    var a_b1_3 = vec3<f32>(0.0);
+    var a_b1_4 = vec3<f32>(0.0);
+    var a_b1_5 = vec3<f32>(0.0);
     if params.perspective == 0u {
         let h = texels[i].h.xyz;
         let m0r = texels[i].coef[0].xyz;
@@ -48,26 +100,54 @@ fn backward_texel(@builtin(global_invocation_id) gid: vec3<u32>) {
             let x = max(0.0, dot(h, n));
             let lnx = lobe_log(x);
             let gc = pixels[p].g.xyz * c;
-            let r = lobe_grads(x, lnx, m0r, m1r);
-            let g = lobe_grads(x, lnx, m0g, m1g);
-            let b = lobe_grads(x, lnx, m0b, m1b);
-            acc_l += gc * vec3<f32>(r.f, g.f, b.f);
-            d0r += gc.x * r.d0;
-            d1r += gc.x * r.d1;
-            d0g += gc.y * g.d0;
-            d1g += gc.y * g.d1;
-            d0b += gc.z * b.d0;
-            d1b += gc.z * b.d1;
+            let lr = lobe_grads(x, lnx, m0r, m1r);
+            let lg = lobe_grads(x, lnx, m0g, m1g);
+            let lb = lobe_grads(x, lnx, m0b, m1b);
+            acc_l += gc * vec3<f32>(lr.f, lg.f, lb.f);
+            d0r += gc.x * lr.d0;
+            d1r += gc.x * lr.d1;
+            d0g += gc.y * lg.d0;
+            d1g += gc.y * lg.d1;
+            d0b += gc.z * lb.d0;
+            d1b += gc.z * lb.d1;
         }
         let tb = spline_basis(texels[i].h.w);
-        for (var j = 0u; j < 6u; j++) {
-            acc[j] = d0r * tb[j];
-            acc[6u + j] = d1r * tb[j];
-            acc[12u + j] = d0g * tb[j];
-            acc[18u + j] = d1g * tb[j];
-            acc[24u + j] = d0b * tb[j];
-            acc[30u + j] = d1b * tb[j];
-        }
+        a_r0_0 = d0r * tb[0];
+        a_r0_1 = d0r * tb[1];
+        a_r0_2 = d0r * tb[2];
+        a_r0_3 = d0r * tb[3];
+        a_r0_4 = d0r * tb[4];
+        a_r0_5 = d0r * tb[5];
+        a_r1_0 = d1r * tb[0];
+        a_r1_1 = d1r * tb[1];
+        a_r1_2 = d1r * tb[2];
+        a_r1_3 = d1r * tb[3];
+        a_r1_4 = d1r * tb[4];
+        a_r1_5 = d1r * tb[5];
+        a_g0_0 = d0g * tb[0];
+        a_g0_1 = d0g * tb[1];
+        a_g0_2 = d0g * tb[2];
+        a_g0_3 = d0g * tb[3];
+        a_g0_4 = d0g * tb[4];
+        a_g0_5 = d0g * tb[5];
+        a_g1_0 = d1g * tb[0];
+        a_g1_1 = d1g * tb[1];
+        a_g1_2 = d1g * tb[2];
+        a_g1_3 = d1g * tb[3];
+        a_g1_4 = d1g * tb[4];
+        a_g1_5 = d1g * tb[5];
+        a_b0_0 = d0b * tb[0];
+        a_b0_1 = d0b * tb[1];
+        a_b0_2 = d0b * tb[2];
+        a_b0_3 = d0b * tb[3];
+        a_b0_4 = d0b * tb[4];
+        a_b0_5 = d0b * tb[5];
+        a_b1_0 = d1b * tb[0];
+        a_b1_1 = d1b * tb[1];
+        a_b1_2 = d1b * tb[2];
+        a_b1_3 = d1b * tb[3];
+        a_b1_4 = d1b * tb[4];
+        a_b1_5 = d1b * tb[5];
     } else {
         for (var p = 0u; p < params.n_pixels; p++) {
             let n = pixels[p].n.xyz;
@@ -80,15 +160,52 @@ fn backward_texel(@builtin(global_invocation_id) gid: vec3<u32>) {
             let x = max(0.0, dot(hv.xyz, n));
             let lnx = lobe_log(x);
             let gc = pixels[p].g.xyz * c;
-            for (var k = 0u; k < 3u; k++) {
-                let base = k * 12u;
-                let lg = lobe_grads(x, lnx, pair_coef(b, base), pair_coef(b, base + 6u));
-                acc_l[k] += gc[k] * lg.f;
-                for (var j = 0u; j < 6u; j++) {
-                    acc[base + j] += (gc[k] * b[j]) * lg.d0;
-                    acc[base + 6u + j] += (gc[k] * b[j]) * lg.d1;
-                }
-            }
+            let lr = lobe_grads(x, lnx, pair_coef(b, 0u), pair_coef(b, 6u));
+            let lg = lobe_grads(x, lnx, pair_coef(b, 12u), pair_coef(b, 18u));
+            let lb = lobe_grads(x, lnx, pair_coef(b, 24u), pair_coef(b, 30u));
+            acc_l += gc * vec3<f32>(lr.f, lg.f, lb.f);
+            let wr0 = gc.x * lr.d0;
+            let wr1 = gc.x * lr.d1;
+            let wg0 = gc.y * lg.d0;
+            let wg1 = gc.y * lg.d1;
+            let wb0 = gc.z * lb.d0;
+            let wb1 = gc.z * lb.d1;
+            a_r0_0 += b[0] * wr0;
+            a_r0_1 += b[1] * wr0;
+            a_r0_2 += b[2] * wr0;
+            a_r0_3 += b[3] * wr0;
+            a_r0_4 += b[4] * wr0;
+            a_r0_5 += b[5] * wr0;
+            a_r1_0 += b[0] * wr1;
+            a_r1_1 += b[1] * wr1;
+            a_r1_2 += b[2] * wr1;
+            a_r1_3 += b[3] * wr1;
+            a_r1_4 += b[4] * wr1;
+            a_r1_5 += b[5] * wr1;
+            a_g0_0 += b[0] * wg0;
+            a_g0_1 += b[1] * wg0;
+            a_g0_2 += b[2] * wg0;
+            a_g0_3 += b[3] * wg0;
+            a_g0_4 += b[4] * wg0;
+            a_g0_5 += b[5] * wg0;
+            a_g1_0 += b[0] * wg1;
+            a_g1_1 += b[1] * wg1;
+            a_g1_2 += b[2] * wg1;
+            a_g1_3 += b[3] * wg1;
+            a_g1_4 += b[4] * wg1;
+            a_g1_5 += b[5] * wg1;
+            a_b0_0 += b[0] * wb0;
+            a_b0_1 += b[1] * wb0;
+            a_b0_2 += b[2] * wb0;
+            a_b0_3 += b[3] * wb0;
+            a_b0_4 += b[4] * wb0;
+            a_b0_5 += b[5] * wb0;
+            a_b1_0 += b[0] * wb1;
+            a_b1_1 += b[1] * wb1;
+            a_b1_2 += b[2] * wb1;
+            a_b1_3 += b[3] * wb1;
+            a_b1_4 += b[4] * wb1;
+            a_b1_5 += b[5] * wb1;
         }
     }
     let ld = texels[i].ld.xyz;
@@ -99,19 +216,40 @@ fn backward_texel(@builtin(global_invocation_id) gid: vec3<u32>) {
     } else {
         d_env[i] += dl;
     }
-    for (var k = 0u; k < 3u; k++) {
-        for (var t = 0u; t < 2u; t++) {
-            for (var j = 0u; j < 6u; j++) {
-                let a = acc[(k * 2u + t) * 6u + j] * ld[k];
-                for (var s = 0u; s < 3u; s++) {
-                    let o = i * 108u + ((k * 3u + s) * 2u + t) * 6u + j;
-                    if first {
-                        d_share[o] = a[s];
-                    } else {
-                        d_share[o] += a[s];
-                    }
-                }
-            }
-        }
-    }
+    put_share(i, 0u, 0u, 0u, a_r0_0 * ld.x, first);
+    put_share(i, 0u, 0u, 1u, a_r0_1 * ld.x, first);
+    put_share(i, 0u, 0u, 2u, a_r0_2 * ld.x, first);
+    put_share(i, 0u, 0u, 3u, a_r0_3 * ld.x, first);
+    put_share(i, 0u, 0u, 4u, a_r0_4 * ld.x, first);
+    put_share(i, 0u, 0u, 5u, a_r0_5 * ld.x, first);
+    put_share(i, 0u, 1u, 0u, a_r1_0 * ld.x, first);
+    put_share(i, 0u, 1u, 1u, a_r1_1 * ld.x, first);
+    put_share(i, 0u, 1u, 2u, a_r1_2 * ld.x, first);
+    put_share(i, 0u, 1u, 3u, a_r1_3 * ld.x, first);
+    put_share(i, 0u, 1u, 4u, a_r1_4 * ld.x, first);
+    put_share(i, 0u, 1u, 5u, a_r1_5 * ld.x, first);
+    put_share(i, 1u, 0u, 0u, a_g0_0 * ld.y, first);
+    put_share(i, 1u, 0u, 1u, a_g0_1 * ld.y, first);
+    put_share(i, 1u, 0u, 2u, a_g0_2 * ld.y, first);
+    put_share(i, 1u, 0u, 3u, a_g0_3 * ld.y, first);
+    put_share(i, 1u, 0u, 4u, a_g0_4 * ld.y, first);
+    put_share(i, 1u, 0u, 5u, a_g0_5 * ld.y, first);
+    put_share(i, 1u, 1u, 0u, a_g1_0 * ld.y, first);
+    put_share(i, 1u, 1u, 1u, a_g1_1 * ld.y, first);
+    put_share(i, 1u, 1u, 2u, a_g1_2 * ld.y, first);
+    put_share(i, 1u, 1u, 3u, a_g1_3 * ld.y, first);
+    put_share(i, 1u, 1u, 4u, a_g1_4 * ld.y, first);
+    put_share(i, 1u, 1u, 5u, a_g1_5 * ld.y, first);
+    put_share(i, 2u, 0u, 0u, a_b0_0 * ld.z, first);
+    put_share(i, 2u, 0u, 1u, a_b0_1 * ld.z, first);
+    put_share(i, 2u, 0u, 2u, a_b0_2 * ld.z, first);
+    put_share(i, 2u, 0u, 3u, a_b0_3 * ld.z, first);
+    put_share(i, 2u, 0u, 4u, a_b0_4 * ld.z, first);
+    put_share(i, 2u, 0u, 5u, a_b0_5 * ld.z, first);
+    put_share(i, 2u, 1u, 0u, a_b1_0 * ld.z, first);
+    put_share(i, 2u, 1u, 1u, a_b1_1 * ld.z, first);
+    put_share(i, 2u, 1u, 2u, a_b1_2 * ld.z, first);
+    put_share(i, 2u, 1u, 3u, a_b1_3 * ld.z, first);
+    put_share(i, 2u, 1u, 4u, a_b1_4 * ld.z, first);
+    put_share(i, 2u, 1u, 5u, a_b1_5 * ld.z, first);
 }

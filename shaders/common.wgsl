@@ -60,39 +60,35 @@ struct Pixel {
     g: vec4<f32>,
 }
 
-// The 9 knots of the quadratic clamped uniform B-spline on [0, pi/2].
-const KNOTS = array<f32, 9>(0.0, 0.0, 0.0, 0.39269908169872414, 0.7853981633974483,
-                            1.1780972450961724, 1.5707963267948966, 1.5707963267948966,
-                            1.5707963267948966);
-
-// B_0..B_5 at t by Cox-de Boor; spans half-open except the last.
+// B_0..B_5 at t: the quadratic clamped uniform B-spline on [0, pi/2] with knots
+// 0, 0, 0, pi/8, pi/4, 3pi/8, pi/2, pi/2, pi/2, in closed form per span (the same values as
+// Cox-de Boor in src/spline.rs, checked there by `closed_form_matches_cox_de_boor`). No
+// private array is indexed: that is slow on SIMD backends such as lavapipe.
 fn spline_basis(t_in: f32) -> array<f32, 6> {
-    let t = clamp(t_in, 0.0, HALF_PI);
-    var b = array<f32, 8>(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
-    var span = 2u;
-    if t >= KNOTS[5] {
-        span = 5u;
-    } else if t >= KNOTS[4] {
-        span = 4u;
-    } else if t >= KNOTS[3] {
-        span = 3u;
-    }
-    b[span] = 1.0;
-    for (var d = 1u; d <= 2u; d++) {
-        for (var j = 0u; j < 8u - d; j++) {
-            var v = 0.0;
-            let den0 = KNOTS[j + d] - KNOTS[j];
-            if den0 > 0.0 {
-                v += (t - KNOTS[j]) / den0 * b[j];
-            }
-            let den1 = KNOTS[j + d + 1u] - KNOTS[j + 1u];
-            if den1 > 0.0 {
-                v += (KNOTS[j + d + 1u] - t) / den1 * b[j + 1u];
-            }
-            b[j] = v;
-        }
-    }
-    return array<f32, 6>(b[0], b[1], b[2], b[3], b[4], b[5]);
+    let tau = clamp(t_in, 0.0, HALF_PI) * (4.0 / HALF_PI);
+    let s = min(floor(tau), 3.0);
+    let r = tau - s;
+    let a = (1.0 - r) * (1.0 - r);
+    let c = r * r;
+    let first = s == 0.0;
+    let last = s == 3.0;
+    // the three non-zero functions on span s: B_s, B_{s+1}, B_{s+2}
+    let v0 = select(0.5 * a, a, first);
+    let v1 = select(select(0.5 + r - c, 0.5 * (1.0 - r) * (3.0 * r + 1.0), last),
+                    0.5 * r * (4.0 - 3.0 * r), first);
+    let v2 = select(0.5 * c, c, last);
+    let e0 = f32(s == 0.0);
+    let e1 = f32(s == 1.0);
+    let e2 = f32(s == 2.0);
+    let e3 = f32(s == 3.0);
+    return array<f32, 6>(
+        v0 * e0,
+        v0 * e1 + v1 * e0,
+        v0 * e2 + v1 * e1 + v2 * e0,
+        v0 * e3 + v1 * e2 + v2 * e1,
+        v1 * e3 + v2 * e2,
+        v2 * e3,
+    );
 }
 
 // Half vector of w and wp (xyz) and theta_d (w); h = 0 where w = -wp.

@@ -52,9 +52,49 @@ pub fn spline_basis(t: f64) -> [f64; N_CTRL_POINTS] {
     [b[0], b[1], b[2], b[3], b[4], b[5]]
 }
 
+/// The same basis in closed form per span, as shaders/common.wgsl evaluates it.
+pub fn spline_basis_closed(t: f64) -> [f64; N_CTRL_POINTS] {
+    let tau = t.clamp(0.0, FRAC_PI_2) * (4.0 / FRAC_PI_2);
+    let s = tau.floor().min(3.0);
+    let r = tau - s;
+    let (a, c) = ((1.0 - r) * (1.0 - r), r * r);
+    let (first, last) = (s == 0.0, s == 3.0);
+    let v0 = if first { a } else { 0.5 * a };
+    let v1 = if first {
+        0.5 * r * (4.0 - 3.0 * r)
+    } else if last {
+        0.5 * (1.0 - r) * (3.0 * r + 1.0)
+    } else {
+        0.5 + r - c
+    };
+    let v2 = if last { c } else { 0.5 * c };
+    let mut b = [0.0; N_CTRL_POINTS];
+    let s = s as usize;
+    b[s] = v0;
+    b[s + 1] = v1;
+    b[s + 2] = v2;
+    b
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn closed_form_matches_cox_de_boor() {
+        for i in 0..=4000 {
+            let t = i as f64 / 4000.0 * FRAC_PI_2;
+            let (a, b) = (spline_basis(t), spline_basis_closed(t));
+            for j in 0..N_CTRL_POINTS {
+                assert!(
+                    (a[j] - b[j]).abs() < 1e-12,
+                    "B_{j}({t}): {} vs {}",
+                    a[j],
+                    b[j]
+                );
+            }
+        }
+    }
 
     #[test]
     fn partition_of_unity_and_non_negative() {
