@@ -1,6 +1,8 @@
 //! Host side of shaders/backward_texel.wgsl, reduce_ctrl.wgsl and backward_normal.wgsl.
 
-use super::buffers::{ParamsTable, Readback, output, uniform_chunks, upload, whole, window};
+use super::buffers::{
+    ParamsTable, Readback, dispatch_chunks, output, storage, uniform_chunks, whole, window,
+};
 use super::forward::{encode_per_pixel, scatter_pixels};
 use super::layout::{CHUNK_BYTES, PIXEL_CHUNK, Params, Pixel, Texel, WG};
 use super::{GpuRenderer, Pass};
@@ -36,11 +38,7 @@ fn encode_texel(
         .filter(|p| p.g[..3].iter().any(|&v| v != 0.0))
         .copied()
         .collect();
-    let (pix, n_chunks) = uniform_chunks(device, "pixel chunks", &active, PIXEL_CHUNK);
-    let chunk_sizes: Vec<u32> = (0..n_chunks)
-        .map(|c| (active.len() - c * PIXEL_CHUNK).min(PIXEL_CHUNK) as u32)
-        .filter(|&n| n > 0)
-        .collect();
+    let (pix, chunk_sizes) = uniform_chunks(device, "pixel chunks", &active, PIXEL_CHUNK);
     let d_ctrl = output(device, "d_ctrl", SHARE_BYTES);
     let texels: Vec<Texel> = prep
         .texels
@@ -48,27 +46,12 @@ fn encode_texel(
         .map(|t| Texel::new(t, &prep.active_lobes))
         .collect();
     let range = r.max_records(SHARE_BYTES);
-    let base = Params::new(
-        &prep.ctrl,
-        !prep.camera.is_orthographic(),
-        prep.active_lobes.len(),
-    );
+    let base = Params::for_scene(prep);
     let mut d_env_slots = Vec::new();
     for (ri, part) in texels.chunks(range).enumerate() {
         let nt = part.len() as u32;
         let mut table = ParamsTable::default();
-        let offsets: Vec<u32> = chunk_sizes
-            .iter()
-            .enumerate()
-            .map(|(c, &np)| {
-                table.push(Params {
-                    n_pixels: np,
-                    n_texels: nt,
-                    first: (c == 0) as u32,
-                    ..base
-                })
-            })
-            .collect();
+        let offsets = table.push_chunks(base, &chunk_sizes, |np| (np, nt));
         let reduce_offset = table.push(Params {
             n_pixels: 0,
             n_texels: nt,
@@ -76,12 +59,7 @@ fn encode_texel(
             ..base
         });
         let params = table.upload(device, "params");
-        let tex = upload(
-            device,
-            "texels",
-            bytemuck::cast_slice(part),
-            wgpu::BufferUsages::STORAGE,
-        );
+        let tex = storage(device, "texels", part);
         let env_bytes = part.len() as u64 * 16;
         let d_env = output(device, "d_env", env_bytes);
         let d_share = output(device, "d_share", part.len() as u64 * SHARE_BYTES);
@@ -111,10 +89,7 @@ fn encode_texel(
                 timestamp_writes: None,
             });
             cp.set_pipeline(&gather.pipeline);
-            for (c, &off) in offsets.iter().enumerate() {
-                cp.set_bind_group(0, &bg, &[off, c as u32 * CHUNK_BYTES as u32]);
-                cp.dispatch_workgroups(nt.div_ceil(WG as u32), 1, 1);
-            }
+            dispatch_chunks(&mut cp, &bg, &offsets, nt.div_ceil(WG as u32));
             cp.set_pipeline(&reduce.pipeline);
             cp.set_bind_group(0, &reduce_bg, &[reduce_offset]);
             cp.dispatch_workgroups(N_PARAMS as u32, 1, 1);

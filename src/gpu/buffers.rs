@@ -32,6 +32,34 @@ pub fn upload(
     })
 }
 
+/// A read-only storage buffer holding `records`.
+pub fn storage<T: bytemuck::Pod>(
+    device: &wgpu::Device,
+    label: &str,
+    records: &[T],
+) -> wgpu::Buffer {
+    upload(
+        device,
+        label,
+        bytemuck::cast_slice(records),
+        wgpu::BufferUsages::STORAGE,
+    )
+}
+
+/// Dispatches `groups` workgroups once per uniform chunk: params entry `offsets[c]` with
+/// chunk `c` of the chunk buffer bound at binding 1.
+pub fn dispatch_chunks(
+    cp: &mut wgpu::ComputePass<'_>,
+    bg: &wgpu::BindGroup,
+    offsets: &[u32],
+    groups: u32,
+) {
+    for (c, &off) in offsets.iter().enumerate() {
+        cp.set_bind_group(0, bg, &[off, c as u32 * CHUNK_BYTES as u32]);
+        cp.dispatch_workgroups(groups, 1, 1);
+    }
+}
+
 /// A zeroed read-write storage buffer of `bytes` that can be copied out.
 pub fn output(device: &wgpu::Device, label: &str, bytes: u64) -> wgpu::Buffer {
     device.create_buffer(&wgpu::BufferDescriptor {
@@ -43,21 +71,22 @@ pub fn output(device: &wgpu::Device, label: &str, bytes: u64) -> wgpu::Buffer {
 }
 
 /// Records padded to whole uniform chunks of [`CHUNK_BYTES`]: returns the buffer and the
-/// number of chunks.
+/// number of records in each chunk (none for no records).
 pub fn uniform_chunks<T: bytemuck::Pod + Default>(
     device: &wgpu::Device,
     label: &str,
     records: &[T],
     per_chunk: usize,
-) -> (wgpu::Buffer, usize) {
+) -> (wgpu::Buffer, Vec<u32>) {
     let chunks = records.len().div_ceil(per_chunk).max(1);
     let mut padded = records.to_vec();
     padded.resize(chunks * per_chunk, T::default());
     let bytes: &[u8] = bytemuck::cast_slice(&padded);
     debug_assert_eq!(bytes.len() as u64, chunks as u64 * CHUNK_BYTES);
+    let sizes = records.chunks(per_chunk).map(|c| c.len() as u32).collect();
     (
         upload(device, label, bytes, wgpu::BufferUsages::UNIFORM),
-        chunks,
+        sizes,
     )
 }
 
@@ -74,6 +103,29 @@ impl ParamsTable {
         self.bytes.extend_from_slice(bytemuck::bytes_of(&p));
         self.bytes.resize(offset + PARAMS_STRIDE as usize, 0);
         offset as u32
+    }
+
+    /// One entry per uniform chunk of `sizes`, `first` set on chunk 0 (the start of each
+    /// sum), built by `entry(chunk size)` from `base`; returns their dynamic offsets.
+    pub fn push_chunks(
+        &mut self,
+        base: Params,
+        sizes: &[u32],
+        entry: impl Fn(u32) -> (u32, u32),
+    ) -> Vec<u32> {
+        sizes
+            .iter()
+            .enumerate()
+            .map(|(c, &size)| {
+                let (n_pixels, n_texels) = entry(size);
+                self.push(Params {
+                    n_pixels,
+                    n_texels,
+                    first: (c == 0) as u32,
+                    ..base
+                })
+            })
+            .collect()
     }
 
     /// The uniform buffer.

@@ -1,6 +1,8 @@
 //! Host side of shaders/forward.wgsl.
 
-use super::buffers::{ParamsTable, Readback, output, uniform_chunks, upload, whole, window};
+use super::buffers::{
+    ParamsTable, Readback, dispatch_chunks, output, storage, uniform_chunks, whole, window,
+};
 use super::layout::{CHUNK_BYTES, Params, Pixel, TEXEL_CHUNK, Texel, WG};
 use super::{GpuRenderer, Pass};
 use crate::error::Result;
@@ -14,12 +16,7 @@ pub(super) fn lit_chunks(r: &GpuRenderer, prep: &Prepared) -> (wgpu::Buffer, Vec
         .iter()
         .map(|&i| Texel::new(&prep.texels[i], &prep.active_lobes))
         .collect();
-    let (buf, n_chunks) = uniform_chunks(&r.ctx.device, "lit texels", &lit, TEXEL_CHUNK);
-    let sizes = (0..n_chunks)
-        .map(|c| (lit.len() - c * TEXEL_CHUNK).min(TEXEL_CHUNK) as u32)
-        .filter(|&n| n > 0)
-        .collect();
-    (buf, sizes)
+    uniform_chunks(&r.ctx.device, "lit texels", &lit, TEXEL_CHUNK)
 }
 
 /// Encodes a per-pixel pass (forward or backward_normal) over `pixels` against the lit
@@ -40,30 +37,9 @@ pub(super) fn encode_per_pixel(
     for part in pixels.chunks(range.max(1)) {
         let n = part.len() as u32;
         let mut table = ParamsTable::default();
-        let base = Params::new(
-            &prep.ctrl,
-            !prep.camera.is_orthographic(),
-            prep.active_lobes.len(),
-        );
-        let offsets: Vec<u32> = chunk_sizes
-            .iter()
-            .enumerate()
-            .map(|(c, &nt)| {
-                table.push(Params {
-                    n_pixels: n,
-                    n_texels: nt,
-                    first: (c == 0) as u32,
-                    ..base
-                })
-            })
-            .collect();
+        let offsets = table.push_chunks(Params::for_scene(prep), &chunk_sizes, |nt| (n, nt));
         let params = table.upload(device, "params");
-        let pix = upload(
-            device,
-            "pixels",
-            bytemuck::cast_slice(part),
-            wgpu::BufferUsages::STORAGE,
-        );
+        let pix = storage(device, "pixels", part);
         let out_bytes = part.len() as u64 * 16;
         let out = output(device, pass.name(), out_bytes);
         let bg = device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -82,10 +58,7 @@ pub(super) fn encode_per_pixel(
                 timestamp_writes: None,
             });
             cp.set_pipeline(&pipe.pipeline);
-            for (c, &off) in offsets.iter().enumerate() {
-                cp.set_bind_group(0, &bg, &[off, c as u32 * CHUNK_BYTES as u32]);
-                cp.dispatch_workgroups(n.div_ceil(WG as u32), 1, 1);
-            }
+            dispatch_chunks(&mut cp, &bg, &offsets, n.div_ceil(WG as u32));
         }
         slots.push(readback.copy(device, enc, &out, out_bytes));
     }

@@ -43,6 +43,15 @@ const _: () = assert!(size_of::<Params>().is_multiple_of(16));
 pub const PARAMS_STRIDE: u64 = size_of::<Params>().next_multiple_of(256) as u64;
 
 impl Params {
+    /// Params for a prepared scene.
+    pub fn for_scene(prep: &crate::prepare::Prepared) -> Self {
+        Params::new(
+            &prep.ctrl,
+            !prep.camera.is_orthographic(),
+            prep.active_lobes.len(),
+        )
+    }
+
     /// Params with the material's control points rearranged for `pair_coef`.
     pub fn new(ctrl: &[f64; N_PARAMS], perspective: bool, n_lobes: usize) -> Self {
         let mut cc = [[0.0f32; 4]; 36];
