@@ -383,6 +383,12 @@ fn run(cli: Cli) -> Result<(), Failure> {
 }
 
 fn main() -> ExitCode {
+    if std::env::var_os("XDG_RUNTIME_DIR").is_none() {
+        // Without it the Vulkan loader prints "error: XDG_RUNTIME_DIR is invalid" lines
+        // that look like matedit's own errors; a headless run has no use for the variable.
+        // SAFETY: no other thread exists yet.
+        unsafe { std::env::set_var("XDG_RUNTIME_DIR", std::env::temp_dir()) };
+    }
     if std::env::var_os("RUST_BACKTRACE").is_none() {
         // A bug is still a bug, but the user gets one line, not a backtrace dump.
         std::panic::set_hook(Box::new(|info| {
