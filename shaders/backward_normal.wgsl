@@ -54,12 +54,22 @@ fn backward_normal(@builtin(global_invocation_id) gid: vec3<u32>) {
             let b = spline_basis(hv.w);
             let x = max(0.0, dot(h, n));
             let lnx = lobe_log(x);
-            let fr = lobe_sum_dx(x, lnx, pair_coef(b, 0u), pair_coef(b, 6u));
-            let fg = lobe_sum_dx(x, lnx, pair_coef(b, 12u), pair_coef(b, 18u));
-            let fb = lobe_sum_dx(x, lnx, pair_coef(b, 24u), pair_coef(b, 30u));
+            // active lobes, then constant lobes (no dependence on x); scale 0 left out
+            var f = vec3<f32>(0.0);
+            var dx = vec3<f32>(0.0);
+            for (var q = 0u; q < params.n_lobes; q++) {
+                let m0 = lobe_coef(b, q * 12u);
+                let m1 = lobe_coef(b, q * 12u + 6u);
+                let e = stable_expm1(m0 * lobe_pow(x, lnx, m1));
+                f += e;
+                dx += (e + 1.0) * m0 * lobe_dpow(x, lnx, m1);
+            }
+            for (var q = params.n_lobes; q < params.n_lobes + params.n_const; q++) {
+                f += stable_expm1(lobe_coef(b, q * 12u));
+            }
             let gl = g * texels[i].ld.xyz;
-            let along_w = gl.x * fr.x + gl.y * fg.x + gl.z * fb.x;
-            let along_h = gl.x * fr.y + gl.y * fg.y + gl.z * fb.y;
+            let along_w = dot(gl, f);
+            let along_h = dot(gl, dx);
             acc += along_w * w + (c * along_h) * h;
         }
     }

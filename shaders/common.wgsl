@@ -27,11 +27,15 @@ struct Params {
     perspective: u32,
     // orthographic camera: the number of active lobes in Texel.lobes
     n_lobes: u32,
+    // perspective camera: the number of constant lobes after the active ones in lc
+    n_const: u32,
     _pad0: u32,
     _pad1: u32,
-    _pad2: u32,
     // cc[(k * 2 + t) * 6 + j] = (ctrl[idx(k, 0, t, j)], ctrl[idx(k, 1, t, j)], ctrl[idx(k, 2, t, j)], 0)
     cc: array<vec4<f32>, 36>,
+    // lc[(q * 2 + t) * 6 + j]: the same over channels (R, G, B) for the q-th lobe of the
+    // active then the constant lobes
+    lc: array<vec4<f32>, 36>,
 }
 
 // One environment texel. Kept in sync with `Texel` in src/gpu/layout.rs.
@@ -113,6 +117,14 @@ fn pair_coef(b: array<f32, 6>, base: u32) -> vec3<f32> {
         + b[4] * params.cc[base + 4u].xyz + b[5] * params.cc[base + 5u].xyz;
 }
 
+// The coefficient vector (over channels) of lobe q, coefficient t at the basis b, where
+// base = (q * 2 + t) * 6 indexes lc.
+fn lobe_coef(b: array<f32, 6>, base: u32) -> vec3<f32> {
+    return b[0] * params.lc[base].xyz + b[1] * params.lc[base + 1u].xyz
+        + b[2] * params.lc[base + 2u].xyz + b[3] * params.lc[base + 3u].xyz
+        + b[4] * params.lc[base + 4u].xyz + b[5] * params.lc[base + 5u].xyz;
+}
+
 // exp(y) - 1 without cancellation: a degree-8 Taylor polynomial where |y| < 0.5
 // (truncation error < 1.1e-8 relative), exp(y) - 1 elsewhere.
 // Multiplications by reciprocals, not divisions: divisions are several times dearer.
@@ -144,20 +156,6 @@ fn lobe_dpow(x: f32, lnx: f32, e: vec3<f32>) -> vec3<f32> {
     let d = min(e * exp((e - 1.0) * lnx), vec3<f32>(DPOW_MAX));
     let zero = vec3<bool>(x <= 0.0) | (e == vec3<f32>(0.0));
     return select(d, vec3<f32>(0.0), zero);
-}
-
-// One channel's BRDF: sum over its three lobes of exp(m0 x^m1) - 1.
-fn lobe_sum(x: f32, lnx: f32, m0: vec3<f32>, m1: vec3<f32>) -> f32 {
-    let e = stable_expm1(m0 * lobe_pow(x, lnx, m1));
-    return e.x + e.y + e.z;
-}
-
-// One channel's BRDF (x) and its derivative with respect to x (y):
-// sum_s E_s m0_s m1_s x^(m1_s - 1).
-fn lobe_sum_dx(x: f32, lnx: f32, m0: vec3<f32>, m1: vec3<f32>) -> vec2<f32> {
-    let e = stable_expm1(m0 * lobe_pow(x, lnx, m1));
-    let d = (e + 1.0) * m0 * lobe_dpow(x, lnx, m1);
-    return vec2<f32>(e.x + e.y + e.z, d.x + d.y + d.z);
 }
 
 // One channel's BRDF and its derivatives with respect to the lobes' coefficients.

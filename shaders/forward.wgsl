@@ -46,11 +46,15 @@ fn forward(@builtin(global_invocation_id) gid: vec3<u32>) {
             let b = spline_basis(hv.w);
             let x = max(0.0, dot(hv.xyz, n));
             let lnx = lobe_log(x);
-            let f = vec3<f32>(
-                lobe_sum(x, lnx, pair_coef(b, 0u), pair_coef(b, 6u)),
-                lobe_sum(x, lnx, pair_coef(b, 12u), pair_coef(b, 18u)),
-                lobe_sum(x, lnx, pair_coef(b, 24u), pair_coef(b, 30u)),
-            );
+            // active lobes, then constant lobes (x^0 = 1); lobes with scale 0 are left out
+            var f = vec3<f32>(0.0);
+            for (var q = 0u; q < params.n_lobes; q++) {
+                let m1 = lobe_coef(b, q * 12u + 6u);
+                f += stable_expm1(lobe_coef(b, q * 12u) * lobe_pow(x, lnx, m1));
+            }
+            for (var q = params.n_lobes; q < params.n_lobes + params.n_const; q++) {
+                f += stable_expm1(lobe_coef(b, q * 12u));
+            }
             acc += f * texels[i].ld.xyz * c;
         }
     }

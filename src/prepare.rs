@@ -76,6 +76,9 @@ pub struct Prepared {
     /// non-zero), in order: the only ones the image and dLoss/dn evaluate per pair. Lobes
     /// with every scale 0 add nothing; lobes with every exponent 0 are in `fconst`.
     pub active_lobes: Vec<usize>,
+    /// The lobes whose exponents are all 0 (and some scale is not): f gets exp(m0) - 1
+    /// from each, whatever x is.
+    pub const_lobes: Vec<usize>,
 }
 
 /// The material's lobes that depend on x (see [`Prepared::active_lobes`]) and the constant
@@ -226,6 +229,7 @@ impl Prepared {
             texels,
             lit,
             active_lobes,
+            const_lobes,
         }
     }
 }

@@ -325,4 +325,21 @@ fn forward_backward_presets_with_constant_and_zero_lobes() {
         })
         .collect();
     compare("presets", &Batch::new(scenes).unwrap());
+    let scenes = ["plastic-red", "matte-white", "gold"]
+        .iter()
+        .map(|name| {
+            let mut s = random_scene(
+                &mut rng,
+                10,
+                9,
+                16,
+                32,
+                Convention::Paper,
+                Camera::Perspective { fov_y_deg: 50.0 },
+            );
+            s.material = matedit::presets::lookup(name).expect("preset");
+            s
+        })
+        .collect();
+    compare("presets perspective", &Batch::new(scenes).unwrap());
 }

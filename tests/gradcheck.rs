@@ -193,7 +193,10 @@ fn gradcheck_constant_and_zero_lobes() {
     }
     let prep = raw.prepare();
     assert_eq!(prep.active_lobes, vec![0]);
-    check_raw(raw, 8, "constant and zero lobes");
+    assert_eq!(prep.const_lobes, vec![1]);
+    check_raw(raw.clone(), 8, "constant and zero lobes");
+    raw.camera = Camera::Perspective { fov_y_deg: 60.0 };
+    check_raw(raw, 8, "constant and zero lobes, perspective");
 }
 
 #[test]

@@ -87,10 +87,11 @@ fn shared_structs_match_rust_layout() {
             ("first", offset_of!(Params, first)),
             ("perspective", offset_of!(Params, perspective)),
             ("n_lobes", offset_of!(Params, n_lobes)),
+            ("n_const", offset_of!(Params, n_const)),
             ("_pad0", offset_of!(Params, _pad)),
             ("_pad1", offset_of!(Params, _pad) + 4),
-            ("_pad2", offset_of!(Params, _pad) + 8),
             ("cc", offset_of!(Params, cc)),
+            ("lc", offset_of!(Params, lc)),
         ],
         size_of::<Params>(),
     );

@@ -2,9 +2,7 @@
 
 use rayon::prelude::*;
 
-use super::common::{
-    channel_coef, lobe_dpow, lobe_log, lobe_pow, lobe_sum_dx, pair_terms, stable_expm1,
-};
+use super::common::{lobe_dpow, lobe_log, lobe_pow, pair_terms, stable_expm1};
 use crate::prepare::{Prepared, dot};
 
 /// dLoss/dn per pixel (row-major, 0 on background) for upstream `g` (row-major).
@@ -30,21 +28,22 @@ pub fn backward_normal(prep: &Prepared, g: &[[f64; 3]]) -> Vec<[f64; 3]> {
                 let mut along_w = 0.0;
                 let mut along_h = 0.0;
                 for k in 0..3 {
-                    let (f, dx) = if perspective {
-                        let (m0, m1) = channel_coef(&m, k);
-                        lobe_sum_dx(x, lnx, m0, m1)
+                    // constant lobes (no dependence on x): summed per texel for
+                    // orthographic cameras, per pair for perspective ones; lobes with
+                    // scale 0 are left out
+                    let mut f = if perspective {
+                        let consts = prep.const_lobes.iter();
+                        consts.map(|&s| stable_expm1(m[(k * 3 + s) * 2])).sum()
                     } else {
-                        // constant lobes are in fconst (no dependence on x); lobes with
-                        // scale 0 are left out
-                        let (mut f, mut dx) = (t.fconst[k], 0.0);
-                        for &s in &prep.active_lobes {
-                            let (m0, m1) = (m[(k * 3 + s) * 2], m[(k * 3 + s) * 2 + 1]);
-                            let e = stable_expm1(m0 * lobe_pow(x, lnx, m1));
-                            f += e;
-                            dx += (e + 1.0) * m0 * lobe_dpow(x, lnx, m1);
-                        }
-                        (f, dx)
+                        t.fconst[k]
                     };
+                    let mut dx = 0.0;
+                    for &s in &prep.active_lobes {
+                        let (m0, m1) = (m[(k * 3 + s) * 2], m[(k * 3 + s) * 2 + 1]);
+                        let e = stable_expm1(m0 * lobe_pow(x, lnx, m1));
+                        f += e;
+                        dx += (e + 1.0) * m0 * lobe_dpow(x, lnx, m1);
+                    }
                     let gl = gp[k] * t.ld[k];
                     along_w += gl * f;
                     along_h += gl * dx;

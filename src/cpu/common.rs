@@ -58,27 +58,6 @@ pub fn pair_terms(
     }
 }
 
-/// One channel's BRDF: sum over its three lobes of exp(m0 x^m1) - 1. `m0`, `m1` are the
-/// lobes' coefficients.
-pub fn lobe_sum(x: f64, lnx: f64, m0: [f64; 3], m1: [f64; 3]) -> f64 {
-    (0..3)
-        .map(|s| stable_expm1(m0[s] * lobe_pow(x, lnx, m1[s])))
-        .sum()
-}
-
-/// One channel's BRDF and its derivative with respect to x:
-/// sum_s E_s m0_s m1_s x^(m1_s - 1).
-pub fn lobe_sum_dx(x: f64, lnx: f64, m0: [f64; 3], m1: [f64; 3]) -> (f64, f64) {
-    let mut f = 0.0;
-    let mut dx = 0.0;
-    for s in 0..3 {
-        let e = stable_expm1(m0[s] * lobe_pow(x, lnx, m1[s]));
-        f += e;
-        dx += (e + 1.0) * m0[s] * lobe_dpow(x, lnx, m1[s]);
-    }
-    (f, dx)
-}
-
 /// One channel's BRDF and its derivatives with respect to the lobes' coefficients.
 pub struct LobeGrads {
     /// sum_s exp(m0_s x^m1_s) - 1.

@@ -2,7 +2,7 @@
 
 use rayon::prelude::*;
 
-use super::common::{channel_coef, lobe_log, lobe_pow, lobe_sum, pair_terms, stable_expm1};
+use super::common::{lobe_log, lobe_pow, pair_terms, stable_expm1};
 use crate::prepare::{Prepared, dot};
 
 /// The image of a prepared scene, row-major, 0 on background pixels.
@@ -24,18 +24,18 @@ pub fn forward(prep: &Prepared) -> Vec<[f64; 3]> {
                 let x = dot(h, n).max(0.0);
                 let lnx = lobe_log(x);
                 for k in 0..3 {
-                    let f = if perspective {
-                        let (m0, m1) = channel_coef(&m, k);
-                        lobe_sum(x, lnx, m0, m1)
+                    // constant lobes (x^0 = 1): summed per texel for orthographic cameras,
+                    // per pair for perspective ones; lobes with scale 0 are left out
+                    let mut f = if perspective {
+                        let consts = prep.const_lobes.iter();
+                        consts.map(|&s| stable_expm1(m[(k * 3 + s) * 2])).sum()
                     } else {
-                        // constant lobes are in fconst; lobes with scale 0 are left out
-                        let mut f = t.fconst[k];
-                        for &s in &prep.active_lobes {
-                            let (m0, m1) = (m[(k * 3 + s) * 2], m[(k * 3 + s) * 2 + 1]);
-                            f += stable_expm1(m0 * lobe_pow(x, lnx, m1));
-                        }
-                        f
+                        t.fconst[k]
                     };
+                    for &s in &prep.active_lobes {
+                        let (m0, m1) = (m[(k * 3 + s) * 2], m[(k * 3 + s) * 2 + 1]);
+                        f += stable_expm1(m0 * lobe_pow(x, lnx, m1));
+                    }
                     acc[k] += f * t.ld[k] * c;
                 }
             }

@@ -31,10 +31,15 @@ pub struct Params {
     pub perspective: u32,
     /// Lobes in `Texel::lobes` (orthographic cameras).
     pub n_lobes: u32,
+    /// Lobes after the active ones in `lc` whose exponents are all 0 (perspective cameras).
+    pub n_const: u32,
     /// Padding to 16 bytes.
-    pub _pad: [u32; 3],
+    pub _pad: [u32; 2],
     /// cc[(k * 2 + t) * 6 + j] = the control points j of coefficient t of channel k's three lobes.
     pub cc: [[f32; 4]; 36],
+    /// lc[(q * 2 + t) * 6 + j] = the control points j of coefficient t of the q-th lobe of
+    /// the active then the constant lobes, over channels (R, G, B).
+    pub lc: [[f32; 4]; 36],
 }
 const _: () = assert!(size_of::<Params>().is_multiple_of(16));
 
@@ -45,11 +50,27 @@ pub const PARAMS_STRIDE: u64 = size_of::<Params>().next_multiple_of(256) as u64;
 impl Params {
     /// Params for a prepared scene.
     pub fn for_scene(prep: &crate::prepare::Prepared) -> Self {
-        Params::new(
+        let mut p = Params::new(
             &prep.ctrl,
             !prep.camera.is_orthographic(),
             prep.active_lobes.len(),
-        )
+        );
+        p.n_const = prep.const_lobes.len() as u32;
+        for (q, &s) in prep
+            .active_lobes
+            .iter()
+            .chain(&prep.const_lobes)
+            .enumerate()
+        {
+            for t in 0..2 {
+                for j in 0..6 {
+                    for k in 0..3 {
+                        p.lc[(q * 2 + t) * 6 + j][k] = prep.ctrl[idx(k, s, t, j)] as f32;
+                    }
+                }
+            }
+        }
+        p
     }
 
     /// Params with the material's control points rearranged for `pair_coef`.
@@ -70,8 +91,10 @@ impl Params {
             first: 0,
             perspective: perspective as u32,
             n_lobes: n_lobes as u32,
-            _pad: [0; 3],
+            n_const: 0,
+            _pad: [0; 2],
             cc,
+            lc: [[0.0; 4]; 36],
         }
     }
 }
