@@ -308,38 +308,18 @@ fn inputs_over_the_binding_limit_are_split() {
 fn forward_backward_presets_with_constant_and_zero_lobes() {
     // the built-in presets have diffuse (constant) lobes and unused (scale 0) lobes
     let mut rng = Rng::new(19);
-    let scenes = ["plastic-red", "matte-white", "gold"]
-        .iter()
-        .map(|name| {
-            let mut s = random_scene(
-                &mut rng,
-                10,
-                9,
-                16,
-                32,
-                Convention::Equirect,
-                Camera::Orthographic,
-            );
-            s.material = matedit::presets::lookup(name).expect("preset");
-            s
-        })
-        .collect();
-    compare("presets", &Batch::new(scenes).unwrap());
-    let scenes = ["plastic-red", "matte-white", "gold"]
-        .iter()
-        .map(|name| {
-            let mut s = random_scene(
-                &mut rng,
-                10,
-                9,
-                16,
-                32,
-                Convention::Paper,
-                Camera::Perspective { fov_y_deg: 50.0 },
-            );
-            s.material = matedit::presets::lookup(name).expect("preset");
-            s
-        })
-        .collect();
-    compare("presets perspective", &Batch::new(scenes).unwrap());
+    for (conv, camera) in [
+        (Convention::Equirect, Camera::Orthographic),
+        (Convention::Paper, Camera::Perspective { fov_y_deg: 50.0 }),
+    ] {
+        let scenes = ["plastic-red", "matte-white", "gold"]
+            .iter()
+            .map(|name| {
+                let mut s = random_scene(&mut rng, 10, 9, 16, 32, conv, camera);
+                s.material = matedit::presets::lookup(name).expect("preset");
+                s
+            })
+            .collect();
+        compare(&format!("presets {camera:?}"), &Batch::new(scenes).unwrap());
+    }
 }
