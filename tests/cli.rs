@@ -21,6 +21,21 @@ fn matedit() -> assert_cmd::Command {
     cargo_bin_cmd!("matedit")
 }
 
+/// `matedit render -o OUT` of an 8-pixel sphere against a 4x8 map: the smallest real render.
+fn tiny_render(out: &Path) -> assert_cmd::Command {
+    let mut cmd = matedit();
+    cmd.args([
+        "render",
+        "-o",
+        path_str(out),
+        "--sphere",
+        "8",
+        "--env-size",
+        "4x8",
+    ]);
+    cmd
+}
+
 fn dir() -> tempfile::TempDir {
     tempfile::tempdir().expect("temp dir")
 }
@@ -571,18 +586,8 @@ fn info_describes_inputs() {
 fn device_gpu_fails_with_the_hint_or_works() {
     let d = dir();
     let out = d.path().join("g.npy");
-    let res = matedit()
-        .args([
-            "render",
-            "-o",
-            path_str(&out),
-            "--sphere",
-            "8",
-            "--env-size",
-            "4x8",
-            "--device",
-            "gpu",
-        ])
+    let res = tiny_render(&out)
+        .args(["--device", "gpu"])
         .output()
         .unwrap();
     let stderr = String::from_utf8_lossy(&res.stderr);
@@ -597,18 +602,7 @@ fn device_gpu_fails_with_the_hint_or_works() {
         assert!(!out.exists());
     }
     // auto never fails for lack of a GPU
-    matedit()
-        .args([
-            "render",
-            "-o",
-            path_str(&out),
-            "--sphere",
-            "8",
-            "--env-size",
-            "4x8",
-        ])
-        .assert()
-        .success();
+    tiny_render(&out).assert().success();
 }
 
 #[test]
@@ -617,19 +611,9 @@ fn no_adapter_for_device_gpu_is_a_runtime_error_with_the_hint() {
     // `--device auto` must fall back to the CPU.
     let d = dir();
     let out = d.path().join("g.npy");
-    let res = matedit()
+    let res = tiny_render(&out)
         .env("WGPU_ADAPTER_NAME", "matedit-test-no-such-adapter")
-        .args([
-            "render",
-            "-o",
-            path_str(&out),
-            "--sphere",
-            "8",
-            "--env-size",
-            "4x8",
-            "--device",
-            "gpu",
-        ])
+        .args(["--device", "gpu"])
         .output()
         .unwrap();
     let stderr = String::from_utf8_lossy(&res.stderr);
@@ -640,17 +624,8 @@ fn no_adapter_for_device_gpu_is_a_runtime_error_with_the_hint() {
     );
     assert!(!stderr.contains("panicked"), "{stderr}");
     assert!(listing(d.path()).is_empty());
-    matedit()
+    tiny_render(&out)
         .env("WGPU_ADAPTER_NAME", "matedit-test-no-such-adapter")
-        .args([
-            "render",
-            "-o",
-            path_str(&out),
-            "--sphere",
-            "8",
-            "--env-size",
-            "4x8",
-        ])
         .assert()
         .success();
     assert!(out.exists());

@@ -147,12 +147,11 @@ pub(super) fn backward(
             for (t, v) in prep.texels.iter().zip(vals) {
                 d_env[t.index] = [v[0], v[1], v[2]];
             }
-            let parts: Vec<Vec<f32>> = s.d_normals.iter().map(|&i| data[i].clone()).collect();
             let mut d_ctrl = [0.0f32; N_PARAMS];
             d_ctrl.copy_from_slice(&data[s.d_ctrl][..N_PARAMS]);
             Gradients {
                 d_env,
-                d_normals: scatter_pixels(prep, &parts),
+                d_normals: scatter_pixels(prep, &data, &s.d_normals),
                 d_ctrl,
             }
         })

@@ -65,10 +65,11 @@ pub(super) fn encode_per_pixel(
     slots
 }
 
-/// Scatters per-pixel vec4 results (in `prep.pixels` order) into a full row-major image.
-pub(super) fn scatter_pixels(prep: &Prepared, parts: &[Vec<f32>]) -> Vec<[f32; 3]> {
+/// Scatters per-pixel vec4 results (in `prep.pixels` order, read back into `data` at
+/// `slots`) into a full row-major image.
+pub(super) fn scatter_pixels(prep: &Prepared, data: &[Vec<f32>], slots: &[usize]) -> Vec<[f32; 3]> {
     let mut img = vec![[0.0f32; 3]; prep.width * prep.height];
-    let vals = parts.iter().flat_map(|p| p.chunks_exact(4));
+    let vals = slots.iter().flat_map(|&i| data[i].chunks_exact(4));
     for (px, v) in prep.pixels.iter().zip(vals) {
         img[px.index] = [v[0], v[1], v[2]];
     }
@@ -98,13 +99,10 @@ pub(super) fn forward(r: &GpuRenderer, preps: &[Prepared]) -> Result<Vec<Image>>
     Ok(preps
         .iter()
         .zip(slots)
-        .map(|(prep, s)| {
-            let parts: Vec<Vec<f32>> = s.iter().map(|&i| data[i].clone()).collect();
-            Image {
-                width: prep.width,
-                height: prep.height,
-                pixels: scatter_pixels(prep, &parts),
-            }
+        .map(|(prep, s)| Image {
+            width: prep.width,
+            height: prep.height,
+            pixels: scatter_pixels(prep, &data, &s),
         })
         .collect())
 }
