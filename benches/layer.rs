@@ -9,7 +9,9 @@
 use std::time::Instant;
 
 use matedit::prepare::Prepared;
-use matedit::{Backend, Batch, Camera, Convention, EnvMap, Image, Material, NormalMap, Scene, cpu};
+use matedit::{
+    Backend, Batch, Camera, Convention, EnvMap, Image, Material, NormalMap, Scene, reference,
+};
 
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
@@ -105,7 +107,7 @@ fn main() {
         prep.lit.len()
     );
 
-    let c = cpu::CpuReference;
+    let c = reference::Reference;
     let g64: Vec<[f64; 3]> = upstream[0]
         .pixels
         .iter()
@@ -116,7 +118,7 @@ fn main() {
             f64::NAN,
             Vec::new(),
             f64::NAN,
-            cpu::backward(
+            reference::backward(
                 &Prepared::new(&Scene {
                     normals: NormalMap::sphere(1),
                     ..scene.clone()
@@ -125,8 +127,8 @@ fn main() {
             ),
         )
     } else {
-        let (cf, cimg) = time(reps, || cpu::forward(&prep));
-        let (cb, cgrad) = time(reps, || cpu::backward(&prep, &g64));
+        let (cf, cimg) = time(reps, || reference::forward(&prep));
+        let (cb, cgrad) = time(reps, || reference::backward(&prep, &g64));
         println!(
             "{:<60} forward {cf:8.3} s {:8.1} Mpairs/s | backward {cb:8.3} s",
             c.describe(),

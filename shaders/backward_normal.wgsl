@@ -1,5 +1,5 @@
 // backward_normal.wgsl: dLoss/dn. One invocation per foreground pixel, looping over one
-// uniform chunk of lit texels per dispatch. Mirrors src/cpu/backward_normal.rs.
+// uniform chunk of lit texels per dispatch. Mirrors src/reference/backward_normal.rs.
 //
 // dLoss/dn = sum_i [ (sum_k G^k L^k d_omega f^k) w_i
 //                    + c_i (sum_k G^k L^k d_omega sum_s E_s m0_s m1_s x^(m1_s - 1)) h ]

@@ -1,6 +1,6 @@
 // backward_texel.wgsl: dLoss/dL and each texel's share of dLoss/dctrl. One invocation per
 // texel, looping over one uniform chunk of pixels per dispatch and adding into the texel's
-// sums. Mirrors src/cpu/backward_texel.rs.
+// sums. Mirrors src/reference/backward_texel.rs.
 //
 // dLoss/dL^k(i) = sum_p G^k f^k c d_omega
 // share_i[idx(k, s, t, j)] = L^k d_omega sum_p G^k c E_s (x^m1_s, m0_s x^m1_s ln x)[t] B_j(theta_d)

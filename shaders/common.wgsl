@@ -1,6 +1,6 @@
 // common.wgsl: what every pass shares: the layouts of the buffers (kept in sync with
 // src/gpu/layout.rs, checked by tests/shaders.rs), the spline basis (mirrors src/spline.rs),
-// the half vector and the lobe math (mirror src/cpu/common.rs). No entry point.
+// the half vector and the lobe math (mirror src/reference/common.rs). No entry point.
 
 // Texels per uniform chunk: 252 * 256 bytes = 64512 bytes <= 64 KiB, a multiple of 256.
 const TEXEL_CHUNK: u32 = 252u;

@@ -1,5 +1,5 @@
 // forward.wgsl: the image. One invocation per foreground pixel, looping over one uniform
-// chunk of lit texels per dispatch and adding into the pixel's sum. Mirrors src/cpu/forward.rs.
+// chunk of lit texels per dispatch and adding into the pixel's sum. Mirrors src/reference/forward.rs.
 // The camera branch is outside the texel loop and the channels are unrolled, because
 // lavapipe runs invocations as SIMD lanes and private arrays indexed in loops are slow there.
 

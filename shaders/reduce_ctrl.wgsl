@@ -1,6 +1,6 @@
 // reduce_ctrl.wgsl: dLoss/dctrl = the sum over texels of each texel's share. One workgroup
 // per control point: each thread sums a strided slice, then a tree in workgroup memory, so
-// the order of additions is fixed. Mirrors src/cpu/reduce_ctrl.rs.
+// the order of additions is fixed. Mirrors src/reference/reduce_ctrl.rs.
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> d_share: array<f32>;

@@ -5,7 +5,8 @@
 //! Scenes, materials and environment maps are plain types ([`Scene`], [`Batch`],
 //! [`Material`], [`EnvMap`]); a [`Renderer`] runs the forward pass ([`Renderer::render`])
 //! and the vector-Jacobian product ([`Renderer::backward`]) on whichever backend it holds:
-//! WGSL compute shaders through wgpu ([`gpu`]) or the f64 CPU reference ([`cpu`]).
+//! WGSL compute shaders through wgpu ([`gpu`]), the fast f32 SIMD CPU path ([`cpu`]) or
+//! the f64 CPU reference ([`reference`]) that the other two are tested against.
 //!
 //! ```no_run
 //! use matedit::{Batch, Camera, Device, EnvMap, Material, NormalMap, Renderer, Scene};
@@ -36,6 +37,7 @@ pub mod io;
 pub mod material;
 pub mod prepare;
 pub mod presets;
+pub mod reference;
 pub mod scene;
 pub mod spline;
 
@@ -48,15 +50,18 @@ pub use scene::{Batch, Gradients, Image, NormalMap, Scene};
 /// Which backend a [`Renderer`] should use.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Device {
-    /// A hardware GPU if there is one, else the fastest path on this machine; never fails
-    /// for lack of a GPU.
+    /// A hardware GPU (discrete or integrated adapter) if there is one, else the fast CPU
+    /// path; never fails for lack of a GPU, and never picks a software adapter.
     #[default]
     Auto,
     /// Any wgpu adapter (a hardware GPU first, else a software one such as lavapipe); an
     /// error if there is none.
     Gpu,
-    /// The f64 CPU reference.
+    /// The fast f32 CPU path: SIMD (AVX-512, AVX2 + FMA or portable, chosen at run time)
+    /// on rayon's threads.
     Cpu,
+    /// The f64 CPU reference, the ground truth the other paths are tested against.
+    Reference,
 }
 
 impl std::str::FromStr for Device {
@@ -66,7 +71,10 @@ impl std::str::FromStr for Device {
             "auto" => Ok(Device::Auto),
             "gpu" => Ok(Device::Gpu),
             "cpu" => Ok(Device::Cpu),
-            _ => Err(format!("unknown device '{s}': expected auto, gpu or cpu")),
+            "reference" => Ok(Device::Reference),
+            _ => Err(format!(
+                "unknown device '{s}': expected auto, gpu, reference or reference"
+            )),
         }
     }
 }
@@ -89,16 +97,16 @@ pub struct Renderer {
 impl Renderer {
     /// A renderer on the given device.
     ///
-    /// `Device::Auto` takes a hardware GPU, else a software GPU adapter (lavapipe, which
-    /// runs f32 and vectorised on all cores and beats the f64 reference), else the CPU
-    /// reference.
+    /// `Device::Auto` takes a hardware GPU, else the fast CPU path (which outruns a
+    /// software adapter such as lavapipe; ask for that with `Device::Gpu`).
     pub fn new(device: Device) -> Result<Self> {
         let backend: Box<dyn Backend> = match device {
-            Device::Cpu => Box::new(cpu::CpuReference),
+            Device::Cpu => Box::new(cpu::FastCpu::new()),
+            Device::Reference => Box::new(reference::Reference),
             Device::Gpu => Box::new(gpu::GpuRenderer::new()?),
-            Device::Auto => match gpu::GpuRenderer::new() {
-                Ok(g) => Box::new(g),
-                Err(_) => Box::new(cpu::CpuReference),
+            Device::Auto => match gpu::GpuContext::new_hardware() {
+                Ok(ctx) => Box::new(gpu::GpuRenderer::with_context(ctx)?),
+                Err(_) => Box::new(cpu::FastCpu::new()),
             },
         };
         Ok(Renderer { backend })

@@ -114,9 +114,12 @@ struct SceneArgs {
     /// Perspective camera with this vertical field of view in degrees [default: orthographic].
     #[arg(long, value_name = "DEG", value_parser = parse_fov)]
     fov: Option<f64>,
-    /// Backend: auto (a GPU if any, else the CPU), gpu, or cpu (the f64 reference).
-    #[arg(long, value_name = "auto|gpu|cpu", default_value = "auto")]
+    /// Backend: auto (a hardware GPU if any, else cpu), gpu (any wgpu adapter, lavapipe included), reference (the fast f32 SIMD path) or reference (the f64 reference).
+    #[arg(long, value_name = "auto|gpu|cpu|reference", default_value = "auto")]
     device: Device,
+    /// Worker threads of the CPU paths [default: RAYON_NUM_THREADS, else one per core]. Results do not depend on it.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
+    threads: Option<u16>,
     /// A JSON manifest listing several scenes, rendered in one batch (see docs/FORMATS.md). Options above are defaults for what it leaves out.
     #[arg(long, value_name = "MANIFEST")]
     batch: Option<PathBuf>,
@@ -249,8 +252,14 @@ fn with_progress<T>(label: &'static str, f: impl FnOnce() -> T) -> T {
     out
 }
 
-fn renderer(device: Device) -> Result<Renderer, Failure> {
-    let r = Renderer::new(device)?;
+fn renderer(scene: &SceneArgs) -> Result<Renderer, Failure> {
+    if let Some(n) = scene.threads {
+        // only fails if the pool was already built, which nothing here does first
+        let _ = rayon::ThreadPoolBuilder::new()
+            .num_threads(usize::from(n))
+            .build_global();
+    }
+    let r = Renderer::new(scene.device)?;
     eprintln!("matedit: device: {}", r.describe());
     Ok(r)
 }
@@ -264,7 +273,7 @@ fn render(args: &RenderArgs) -> Result<(), Failure> {
     for n in &loaded.notes {
         eprintln!("matedit: {n}");
     }
-    let renderer = renderer(args.scene.device)?;
+    let renderer = renderer(&args.scene)?;
     let images = with_progress("rendering", || renderer.render(&loaded.batch))?;
     let preview = Preview {
         exposure: args.exposure,
@@ -308,7 +317,7 @@ fn grad(args: &GradArgs) -> Result<(), Failure> {
     for n in &loaded.notes {
         eprintln!("matedit: {n}");
     }
-    let renderer = renderer(args.scene.device)?;
+    let renderer = renderer(&args.scene)?;
     let grads = with_progress("differentiating", || {
         renderer.backward(&loaded.batch, &upstream)
     })?;

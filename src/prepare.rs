@@ -48,6 +48,9 @@ pub struct PixelRec {
     pub n: [f64; 3],
     /// The view direction.
     pub wp: [f64; 3],
+    /// |n|^2 - 1, so that the lobe argument can be taken as x = 1 - (|h - n|^2 - nn_m1) / 2
+    /// (for unit h), which keeps 1 - x to full relative precision where x is near 1.
+    pub nn_m1: f64,
 }
 
 /// A scene reduced to the lists the per-pair loops run over.
@@ -216,7 +219,13 @@ impl Prepared {
                 continue;
             }
             let wp = camera.view_dir(index % width, index / width, width, height);
-            pixels.push(PixelRec { index, n, wp });
+            let nn_m1 = (n[0] * n[0] - 1.0) + n[1] * n[1] + n[2] * n[2];
+            pixels.push(PixelRec {
+                index,
+                n,
+                wp,
+                nn_m1,
+            });
         }
         Prepared {
             width,

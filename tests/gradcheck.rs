@@ -5,8 +5,8 @@
 mod common;
 
 use common::{Rng, assert_close, random_material};
-use matedit::cpu;
 use matedit::prepare::{Prepared, dot, half_vector};
+use matedit::reference;
 use matedit::{Camera, Convention, N_PARAMS};
 
 /// A scene as raw f64 arrays, so that it can be perturbed below f32 resolution.
@@ -39,7 +39,7 @@ impl Raw {
     }
 
     fn loss(&self, g: &[[f64; 3]]) -> f64 {
-        let img = cpu::forward(&self.prepare());
+        let img = reference::forward(&self.prepare());
         img.iter().zip(g).map(|(i, g)| dot(*i, *g)).sum()
     }
 }
@@ -116,7 +116,7 @@ fn check(convention: Convention, camera: Camera, seed: u64) {
 
 fn check_raw(raw: Raw, seed: u64, what: &str) {
     let g = upstream(seed, raw.w * raw.h);
-    let an = cpu::backward(&raw.prepare(), &g);
+    let an = reference::backward(&raw.prepare(), &g);
 
     // Step sizes: the loss is linear in L (any step is exact up to rounding); for n and
     // ctrl, 1e-5 keeps truncation (~step^2) and rounding (~1e-16 / step) below 1e-9.
@@ -243,7 +243,7 @@ fn gradient_at_horizon_kink_is_one_sided_from_zero_side() {
     assert!(dot(n, t.h) > 0.1);
     let p = 0;
     raw.normals[p] = n;
-    let an = cpu::backward(&raw.prepare(), &g);
+    let an = reference::backward(&raw.prepare(), &g);
     let along_w = dot(an.d_normals[p], w);
     let step = 1e-6;
     let loss0 = raw.loss(&g);

@@ -5,7 +5,9 @@ mod common;
 
 use common::{Rng, assert_close, flat32, flat64, gpu};
 use matedit::prepare::Prepared;
-use matedit::{Backend, Batch, Camera, Convention, EnvMap, Image, Material, NormalMap, Scene, cpu};
+use matedit::{
+    Backend, Batch, Camera, Convention, EnvMap, Image, Material, NormalMap, Scene, reference,
+};
 
 fn all_finite(v: &[f64]) -> bool {
     v.iter().all(|x| x.is_finite())
@@ -51,10 +53,10 @@ fn extreme_scenes() -> Vec<Scene> {
 fn extreme_valid_inputs_give_finite_outputs_cpu() {
     for (i, s) in extreme_scenes().iter().enumerate() {
         let prep = Prepared::new(s);
-        let img = cpu::forward(&prep);
+        let img = reference::forward(&prep);
         assert!(all_finite(&flat64(&img)), "scene {i}: image not finite");
         let g = vec![[1.0; 3]; 6];
-        let r = cpu::backward(&prep, &g);
+        let r = reference::backward(&prep, &g);
         assert!(all_finite(&flat64(&r.d_env)), "scene {i}: dL not finite");
         assert!(
             all_finite(&flat64(&r.d_normals)),
@@ -113,7 +115,7 @@ fn small_scale_lobes_keep_their_digits_on_gpu() {
         Camera::Orthographic,
     );
     s.material = Material::constant("faint", [(1e-6, 0.0), (3e-6, 4.0), (0.0, 0.0)]).unwrap();
-    let want = flat64(&cpu::forward(&Prepared::new(&s)));
+    let want = flat64(&reference::forward(&Prepared::new(&s)));
     let got = flat32(&g.render(&Batch::single(s).unwrap()).unwrap()[0].pixels);
     assert_close("faint image", &got, &want, 1e-30, 1e-5);
 }
@@ -122,7 +124,7 @@ fn small_scale_lobes_keep_their_digits_on_gpu() {
 /// naming it, not a silent inf.
 #[test]
 fn overflowing_outputs_are_errors_not_inf() {
-    let renderer = matedit::Renderer::with_backend(Box::new(cpu::CpuReference));
+    let renderer = matedit::Renderer::with_backend(Box::new(reference::Reference));
     let mut rng = Rng::new(4);
     let s = common::random_scene(
         &mut rng,

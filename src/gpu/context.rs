@@ -30,6 +30,16 @@ impl GpuContext {
     /// one (lavapipe) last. `WGPU_BACKEND` (e.g. `vulkan`) limits the backends and
     /// `WGPU_ADAPTER_NAME` picks adapters whose name contains it (case-insensitive).
     pub fn new() -> Result<Self> {
+        Self::open(false)
+    }
+
+    /// Opens the best hardware adapter (discrete or integrated GPU), honouring the same
+    /// variables; [`Error::NoAdapter`] when there is none, even if a software one exists.
+    pub fn new_hardware() -> Result<Self> {
+        Self::open(true)
+    }
+
+    fn open(hardware_only: bool) -> Result<Self> {
         let desc = wgpu::InstanceDescriptor::new_without_display_handle().with_env();
         let backends = desc.backends;
         let instance = wgpu::Instance::new(desc);
@@ -39,6 +49,9 @@ impl GpuContext {
             let f = f.to_lowercase();
             adapters.retain(|a| a.get_info().name.to_lowercase().contains(&f));
         }
+        if hardware_only {
+            adapters.retain(|a| rank(a.get_info().device_type) <= 1);
+        }
         adapters.sort_by_key(|a| rank(a.get_info().device_type));
         let Some(adapter) = adapters.into_iter().next() else {
             let mut detail = String::new();
@@ -47,6 +60,9 @@ impl GpuContext {
             }
             if let Some(n) = name_filter {
                 detail += &format!(" with WGPU_ADAPTER_NAME={n}");
+            }
+            if hardware_only {
+                detail += " (hardware GPUs only)";
             }
             return Err(Error::NoAdapter { detail });
         };

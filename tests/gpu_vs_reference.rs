@@ -10,7 +10,9 @@ mod common;
 
 use common::{Rng, assert_close, flat32, flat64, gpu, random_scene};
 use matedit::prepare::Prepared;
-use matedit::{Backend, Batch, Camera, Convention, EnvMap, Image, Material, NormalMap, Scene, cpu};
+use matedit::{
+    Backend, Batch, Camera, Convention, EnvMap, Image, Material, NormalMap, Scene, reference,
+};
 
 const TOL: f64 = 1e-4;
 
@@ -46,7 +48,7 @@ fn compare_on(g: &matedit::gpu::GpuRenderer, test: &str, batch: &Batch) {
     let grads = g.backward(batch, &up).expect("gpu backward");
     for (b, scene) in batch.scenes().iter().enumerate() {
         let prep = Prepared::new(scene);
-        let want = flat64(&cpu::forward(&prep));
+        let want = flat64(&reference::forward(&prep));
         let got = flat32(&images[b].pixels);
         assert!(max_abs(&want) > 0.0, "{test}: the image is black");
         assert_close(
@@ -58,7 +60,7 @@ fn compare_on(g: &matedit::gpu::GpuRenderer, test: &str, batch: &Batch) {
         );
 
         let gu: Vec<[f64; 3]> = up[b].pixels.iter().map(|p| p.map(f64::from)).collect();
-        let r = cpu::backward(&prep, &gu);
+        let r = reference::backward(&prep, &gu);
         for (name, got, want) in [
             ("dL", flat32(&grads[b].d_env), flat64(&r.d_env)),
             ("dn", flat32(&grads[b].d_normals), flat64(&r.d_normals)),
@@ -214,7 +216,7 @@ fn constant_light_scene() -> (Scene, f64) {
 #[test]
 fn analytic_constant_light_exponent_zero_cpu() {
     let (scene, want) = constant_light_scene();
-    let img = cpu::forward(&Prepared::new(&scene));
+    let img = reference::forward(&Prepared::new(&scene));
     assert_close("I (cpu)", &img[0], &[want; 3], 0.0, 1e-3);
 }
 
@@ -259,7 +261,7 @@ fn analytic_one_lobe_against_quadrature() {
     let want = one_lobe_quadrature(kappa, gamma);
     // 64 x 128: the midpoint rule over texels is within 0.2%; at 256 x 512 within 0.02%
     for (hl, rel) in [(64, 2e-3), (256, 2e-4)] {
-        let img = cpu::forward(&Prepared::new(&one_lobe_scene(kappa, gamma, hl)));
+        let img = reference::forward(&Prepared::new(&one_lobe_scene(kappa, gamma, hl)));
         assert_close(
             &format!("one lobe cpu {hl}"),
             &[img[0][0]],
