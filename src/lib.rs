@@ -101,12 +101,12 @@ impl Renderer {
     /// software adapter such as lavapipe; ask for that with `Device::Gpu`).
     pub fn new(device: Device) -> Result<Self> {
         let backend: Box<dyn Backend> = match device {
-            Device::Cpu => Box::new(cpu::FastCpu::new()),
+            Device::Cpu => Box::new(cpu::FastCpu::new()?),
             Device::Reference => Box::new(reference::Reference),
             Device::Gpu => Box::new(gpu::GpuRenderer::new()?),
             Device::Auto => match gpu::GpuContext::new_hardware() {
                 Ok(ctx) => Box::new(gpu::GpuRenderer::with_context(ctx)?),
-                Err(_) => Box::new(cpu::FastCpu::new()),
+                Err(_) => Box::new(cpu::FastCpu::new()?),
             },
         };
         Ok(Renderer { backend })

@@ -1,0 +1,187 @@
+//! Short polynomial exp2, expm1 and ln for the fast CPU path, generic over the SIMD width.
+//!
+//! No special cases beyond what a valid input reaches: arguments are clamped into range
+//! instead of producing inf or NaN, and ln is only taken of x > 0 (its callers handle
+//! x = 0). Coefficients are near-minimax fits (relative error) computed for this file; the
+//! bound beside each is the fit's error in exact arithmetic, and `tests/cpu_math.rs` sweeps
+//! the f32 implementations (fit plus rounding) against f64 and asserts the `*_MAX_REL`
+//! bounds.
+
+use pulp::Simd;
+
+/// 1.5 * 2^23: `(t + MAGIC) - MAGIC` rounds |t| < 2^22 to the nearest integer, and the low
+/// bits of `t + MAGIC` hold that integer.
+const MAGIC: f32 = 12_582_912.0;
+/// The bits of [`MAGIC`].
+const MAGIC_BITS: u32 = 0x4B40_0000;
+/// ln 2 split so that k * LN2_HI is exact for |k| < 2^11 (Cody-Waite).
+const LN2_HI: f32 = 0.693_359_4;
+const LN2_LO: f32 = -2.121_944_4e-4;
+const LN2: f32 = std::f32::consts::LN_2;
+const LOG2E: f32 = std::f32::consts::LOG2_E;
+
+/// 2^f = 1 + f P(f) on [-1/2, 1/2], P of degree 4: relative error 1.1e-7 (fit).
+#[expect(
+    clippy::approx_constant,
+    reason = "a fitted coefficient near ln 2, not ln 2"
+)]
+const EXP2_P: [f32; 5] = [
+    0.693_147,
+    0.240_222_42,
+    0.055_507_34,
+    0.009_671_514,
+    0.001_326_471_5,
+];
+/// expm1(r) = r + r^2 Q(r) on [-ln2/2, ln2/2], Q of degree 4: relative error 1.7e-8 (fit).
+const EXPM1_Q: [f32; 5] = [
+    0.499_999_97,
+    0.166_665_43,
+    0.041_667_2,
+    0.008_366_515,
+    0.001_388_251_3,
+];
+/// ln(1 + f) = f - f^2/2 + f^3 R(f) on [sqrt(1/2) - 1, sqrt(2) - 1], R of degree 6:
+/// relative error 3.5e-8 (fit).
+const LN1P_R: [f32; 7] = [
+    0.333_339_1,
+    -0.250_013_38,
+    0.199_630_57,
+    -0.165_775_9,
+    0.149_148_54,
+    -0.142_674_57,
+    0.087_001_23,
+];
+
+/// Largest relative error of [`exp2`] over [-126, 126] as measured by the sweep test.
+pub const EXP2_MAX_REL: f64 = 3e-7;
+/// Largest error of [`expm1`] over [-87, 87], relative to max(|expm1(y)|, 0): the result
+/// keeps its digits for small |y| (no cancellation).
+pub const EXPM1_MAX_REL: f64 = 3e-7;
+/// Largest absolute error of [`ln`] and [`ln_1m`] (their results are of order 1 or
+/// carry the exactly computed k ln 2), relative to max(|ln x|, 1e-30) where x is near 1.
+pub const LN_MAX_REL: f64 = 3e-7;
+
+#[inline(always)]
+fn horner<S: Simd, const N: usize>(s: S, x: S::f32s, c: &[f32; N]) -> S::f32s {
+    let mut p = s.splat_f32s(c[N - 1]);
+    for i in (0..N - 1).rev() {
+        p = s.mul_add_f32s(p, x, s.splat_f32s(c[i]));
+    }
+    p
+}
+
+/// 2^k for an integer-valued k in [-127, 127] given as the bits of `k + MAGIC`; 0 for -127.
+#[inline(always)]
+fn pow2_from_magic<S: Simd>(s: S, z: S::f32s) -> S::f32s {
+    let k = s.sub_u32s(s.transmute_u32s_f32s(z), s.splat_u32s(MAGIC_BITS - 127));
+    s.transmute_f32s_u32s(s.wrapping_dyn_shl_u32s(k, s.splat_u32s(23)))
+}
+
+/// 2^t, t clamped to [-127, 127]; exactly 0 at -127 and below.
+#[inline(always)]
+pub fn exp2<S: Simd>(s: S, t: S::f32s) -> S::f32s {
+    let t = s.min_f32s(s.max_f32s(t, s.splat_f32s(-127.0)), s.splat_f32s(127.0));
+    let z = s.add_f32s(t, s.splat_f32s(MAGIC));
+    let f = s.sub_f32s(t, s.sub_f32s(z, s.splat_f32s(MAGIC)));
+    let p = s.mul_add_f32s(horner(s, f, &EXP2_P), f, s.splat_f32s(1.0));
+    s.mul_f32s(p, pow2_from_magic(s, z))
+}
+
+/// exp(y) - 1 without cancellation for small |y|, y clamped to [-87, 87]:
+/// y = k ln2 + r with |r| <= ln2/2, expm1(y) = 2^k expm1(r) + (2^k - 1).
+#[inline(always)]
+pub fn expm1<S: Simd>(s: S, y: S::f32s) -> S::f32s {
+    let y = s.min_f32s(s.max_f32s(y, s.splat_f32s(-87.0)), s.splat_f32s(87.0));
+    let z = s.mul_add_f32s(y, s.splat_f32s(LOG2E), s.splat_f32s(MAGIC));
+    let k = s.sub_f32s(z, s.splat_f32s(MAGIC));
+    let r = s.mul_add_f32s(k, s.splat_f32s(-LN2_HI), y);
+    let r = s.mul_add_f32s(k, s.splat_f32s(-LN2_LO), r);
+    let p = s.mul_add_f32s(s.mul_f32s(r, r), horner(s, r, &EXPM1_Q), r);
+    let two_k = pow2_from_magic(s, z);
+    s.mul_add_f32s(two_k, p, s.sub_f32s(two_k, s.splat_f32s(1.0)))
+}
+
+/// ln(1 + f) for f in [sqrt(1/2) - 1, sqrt(2) - 1].
+#[inline(always)]
+fn ln1p_reduced<S: Simd>(s: S, f: S::f32s) -> S::f32s {
+    let f2 = s.mul_f32s(f, f);
+    let r = horner(s, f, &LN1P_R);
+    let head = s.mul_add_f32s(f2, s.splat_f32s(-0.5), f);
+    s.mul_add_f32s(s.mul_f32s(f2, f), r, head)
+}
+
+/// ln x for a normal x > 0 (the caller handles x = 0), as k ln2 + ln(1 + f) with
+/// 1 + f in [sqrt(1/2), sqrt(2)).
+#[inline(always)]
+pub fn ln<S: Simd>(s: S, x: S::f32s) -> S::f32s {
+    ln_1m_or(s, x, None)
+}
+
+/// ln(1 - d) for x = 1 - d > 0, keeping its digits where x is near 1: there the reduced
+/// argument f is -d itself (exact) rather than the rounded x - 1.
+#[inline(always)]
+pub fn ln_1m<S: Simd>(s: S, x: S::f32s, d: S::f32s) -> S::f32s {
+    ln_1m_or(s, x, Some(d))
+}
+
+#[inline(always)]
+fn ln_1m_or<S: Simd>(s: S, x: S::f32s, d: Option<S::f32s>) -> S::f32s {
+    const SQRT_HALF_BITS: u32 = 0x3F35_04F3;
+    // x = 2^k m with m in [sqrt(1/2), sqrt(2)): shift the bits so that the exponent field
+    // counts from sqrt(1/2)
+    let ix = s.sub_u32s(s.transmute_u32s_f32s(x), s.splat_u32s(SQRT_HALF_BITS));
+    let e = s.wrapping_dyn_shr_u32s(ix, s.splat_u32s(23));
+    // k as a float: e is k + 256 (mod 512) after the unsigned shift; (e + MAGIC) - MAGIC
+    let ef = s.sub_f32s(
+        s.transmute_f32s_u32s(s.add_u32s(
+            s.and_u32s(s.add_u32s(e, s.splat_u32s(256)), s.splat_u32s(511)),
+            s.splat_u32s(MAGIC_BITS),
+        )),
+        s.splat_f32s(MAGIC + 256.0),
+    );
+    let m = s.transmute_f32s_u32s(s.add_u32s(
+        s.and_u32s(ix, s.splat_u32s(0x007F_FFFF)),
+        s.splat_u32s(SQRT_HALF_BITS),
+    ));
+    let mut f = s.sub_f32s(m, s.splat_f32s(1.0));
+    if let Some(d) = d {
+        let near_one = s.equal_f32s(ef, s.splat_f32s(0.0));
+        f = s.select_f32s(near_one, s.neg_f32s_(d), f);
+    }
+    s.mul_add_f32s(ef, s.splat_f32s(LN2), ln1p_reduced(s, f))
+}
+
+/// Negation, which pulp's `Simd` spells through the sign bit.
+trait NegF32s: Simd {
+    fn neg_f32s_(self, a: Self::f32s) -> Self::f32s {
+        self.xor_f32s(a, self.splat_f32s(-0.0))
+    }
+}
+impl<S: Simd> NegF32s for S {}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn lanes<S: Simd>(s: S, v: f32) -> S::f32s {
+        s.splat_f32s(v)
+    }
+
+    fn first<S: Simd>(v: S::f32s) -> f32 {
+        bytemuck::cast_slice::<S::f32s, f32>(std::slice::from_ref(&v))[0]
+    }
+
+    #[test]
+    fn spot_values() {
+        let s = pulp::Scalar::new();
+        assert_eq!(first::<pulp::Scalar>(exp2(s, lanes(s, 0.0))), 1.0);
+        assert_eq!(first::<pulp::Scalar>(exp2(s, lanes(s, 3.0))), 8.0);
+        assert_eq!(first::<pulp::Scalar>(exp2(s, lanes(s, -200.0))), 0.0);
+        assert_eq!(first::<pulp::Scalar>(expm1(s, lanes(s, 0.0))), 0.0);
+        assert_eq!(first::<pulp::Scalar>(ln(s, lanes(s, 1.0))), 0.0);
+        let v = first::<pulp::Scalar>(expm1(s, lanes(s, 1e-7)));
+        assert!((v as f64 / 1e-7 - 1.0).abs() < 1e-6, "{v}");
+        let v = first::<pulp::Scalar>(ln(s, lanes(s, 0.25)));
+        assert!((v as f64 - 0.25f64.ln()).abs() < 1e-6, "{v}");
+    }
+}

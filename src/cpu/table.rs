@@ -1,0 +1,215 @@
+//! What the fast path's kernels read: the texels as structure-of-arrays f32 columns in
+//! 4 x 4 tiles of the map (so that the texels of one SIMD block are close on the sphere and
+//! mostly on the same side of a pixel's horizon), the pixels as f32 records, and the
+//! material reduced to the lobe terms a scene needs ([`LobePlan`]). Built from a
+//! [`Prepared`] scene, whose f64 per-texel work (directions, solid angles, orthographic half
+//! vectors and spline coefficients) it reuses.
+
+use crate::material::{N_PARAMS, idx};
+use crate::prepare::{N_COEF_VALUES, Prepared};
+use crate::spline::N_CTRL_POINTS;
+
+/// Texel columns are padded to a multiple of this (the widest SIMD block, AVX-512).
+pub const PAD: usize = 16;
+
+/// Added to 1 - x for texels whose half vector is undefined (w_i = -w_p), so that x = 0.
+const NO_HALF_VECTOR: f32 = 1.0;
+
+/// Which lobe terms one pair needs, with terms shared where the material repeats itself:
+/// channels whose lobe has the same exponent control points share x^m1, and channels with
+/// the same scale and exponent points share the whole lobe.
+#[derive(Clone, Debug, Default)]
+pub struct LobePlan {
+    /// Unique exponent curves: the coefficient column (k * 3 + s) * 2 + 1 that holds each.
+    pub exps: Vec<usize>,
+    /// Unique lobes.
+    pub lobes: Vec<PlanLobe>,
+    /// (k, s) -> the unique lobe it evaluates, for the lobes the plan holds.
+    pub lobe_of: [[Option<usize>; 3]; 3],
+}
+
+/// One unique lobe: exp(a x^b) - 1.
+#[derive(Clone, Copy, Debug)]
+pub struct PlanLobe {
+    /// Coefficient column (k * 3 + s) * 2 of its scale a.
+    pub a_col: usize,
+    /// Its exponent in [`LobePlan::exps`], or None for an exponent that is 0 everywhere
+    /// (x^0 = 1).
+    pub exp: Option<usize>,
+    /// Bit k set: channel k adds this lobe.
+    pub channels: u8,
+    /// Every scale point is 0: the lobe adds nothing to f (exp(0) - 1), only its x^b to
+    /// the gradient of its scale.
+    pub zero_scale: bool,
+}
+
+fn curve(ctrl: &[f64; N_PARAMS], k: usize, s: usize, t: usize) -> [f64; N_CTRL_POINTS] {
+    std::array::from_fn(|j| ctrl[idx(k, s, t, j)])
+}
+
+impl LobePlan {
+    /// The plan for the lobes whose (k, s) `keep` accepts, given the scale and exponent
+    /// curves: a (k, s) joins an existing unique lobe when both curves are equal.
+    pub fn new(ctrl: &[f64; N_PARAMS], keep: impl Fn(usize, usize) -> bool) -> Self {
+        let mut plan = LobePlan::default();
+        let mut exp_curves: Vec<[f64; N_CTRL_POINTS]> = Vec::new();
+        let mut lobe_curves: Vec<([f64; N_CTRL_POINTS], [f64; N_CTRL_POINTS])> = Vec::new();
+        for s in 0..3 {
+            for k in 0..3 {
+                if !keep(k, s) {
+                    continue;
+                }
+                let (sc, ex) = (curve(ctrl, k, s, 0), curve(ctrl, k, s, 1));
+                if let Some(l) = lobe_curves.iter().position(|c| *c == (sc, ex)) {
+                    plan.lobes[l].channels |= 1 << k;
+                    plan.lobe_of[k][s] = Some(l);
+                    continue;
+                }
+                let exp = if ex.iter().all(|&v| v == 0.0) {
+                    None
+                } else if let Some(e) = exp_curves.iter().position(|c| *c == ex) {
+                    Some(e)
+                } else {
+                    exp_curves.push(ex);
+                    plan.exps.push((k * 3 + s) * 2 + 1);
+                    Some(plan.exps.len() - 1)
+                };
+                lobe_curves.push((sc, ex));
+                plan.lobe_of[k][s] = Some(plan.lobes.len());
+                plan.lobes.push(PlanLobe {
+                    a_col: (k * 3 + s) * 2,
+                    exp,
+                    channels: 1 << k,
+                    zero_scale: sc.iter().all(|&v| v == 0.0),
+                });
+            }
+        }
+        plan
+    }
+}
+
+/// A lobe contributes to the image when some scale control point is not 0.
+pub fn has_scale(ctrl: &[f64; N_PARAMS], k: usize, s: usize) -> bool {
+    curve(ctrl, k, s, 0).iter().any(|&v| v != 0.0)
+}
+
+/// A lobe's share of f depends on x when it has a scale and some exponent point is not 0.
+pub fn depends_on_x(ctrl: &[f64; N_PARAMS], k: usize, s: usize) -> bool {
+    has_scale(ctrl, k, s) && curve(ctrl, k, s, 1).iter().any(|&v| v != 0.0)
+}
+
+/// Texels as f32 columns, tile-ordered, padded with inert texels (w = 0, so n.w = 0 and
+/// they are never lit from above a pixel's horizon) to a multiple of [`PAD`].
+#[derive(Clone, Debug, Default)]
+pub struct TexelTable {
+    /// Number of real texels (the rest is padding).
+    pub len: usize,
+    /// Position in `Prepared::texels` of each real texel.
+    pub src: Vec<usize>,
+    /// Direction towards the light.
+    pub w: [Vec<f32>; 3],
+    /// Orthographic: the half vector (0 where undefined).
+    pub h: [Vec<f32>; 3],
+    /// Orthographic: added to 1 - x (0, or 1 where the half vector is undefined).
+    pub d_pad: Vec<f32>,
+    /// L^k d_omega.
+    pub ld: [Vec<f32>; 3],
+    /// Orthographic: the constant lobes' share of f per channel (exp(m0) - 1 summed).
+    pub fconst: [Vec<f32>; 3],
+    /// Orthographic: the coefficient columns the plan reads (indexed by column; empty
+    /// for columns no lobe needs).
+    pub coef: Vec<Vec<f32>>,
+}
+
+impl TexelTable {
+    /// The texels `which` (positions in `prep.texels`), tile-ordered. `cols` are the
+    /// coefficient columns the kernels will read (orthographic cameras only).
+    pub fn new(
+        prep: &Prepared,
+        which: &[usize],
+        cols: &[usize],
+        const_lobes: &[(usize, usize)],
+    ) -> Self {
+        let wl = prep.env_width;
+        let tile = |ti: usize| {
+            let i = prep.texels[ti].index;
+            let (r, c) = (i / wl, i % wl);
+            ((r / 4) * wl.div_ceil(4) + c / 4, (r % 4) * 4 + c % 4)
+        };
+        let mut src = which.to_vec();
+        src.sort_by_key(|&ti| tile(ti));
+        let len = src.len();
+        let padded = len.div_ceil(PAD) * PAD;
+        let ortho = prep.camera.is_orthographic();
+        let col = |f: &dyn Fn(usize) -> f32| -> Vec<f32> {
+            let mut v: Vec<f32> = src.iter().map(|&ti| f(ti)).collect();
+            v.resize(padded, 0.0);
+            v
+        };
+        let t = &prep.texels;
+        let mut coef = vec![Vec::new(); N_COEF_VALUES];
+        if ortho {
+            for &c in cols {
+                coef[c] = col(&|ti| t[ti].coef[c] as f32);
+            }
+        }
+        let fconst = std::array::from_fn(|k| {
+            col(&|ti| {
+                if !ortho {
+                    return 0.0;
+                }
+                let m = &t[ti].coef;
+                let f: f64 = const_lobes
+                    .iter()
+                    .filter(|&&(kk, _)| kk == k)
+                    .map(|&(_, s)| m[(k * 3 + s) * 2].exp_m1())
+                    .sum();
+                f as f32
+            })
+        });
+        TexelTable {
+            len,
+            w: std::array::from_fn(|a| col(&|ti| t[ti].w[a] as f32)),
+            h: std::array::from_fn(|a| col(&|ti| t[ti].h[a] as f32)),
+            d_pad: col(&|ti| {
+                if t[ti].h == [0.0; 3] {
+                    NO_HALF_VECTOR
+                } else {
+                    0.0
+                }
+            }),
+            ld: std::array::from_fn(|k| col(&|ti| t[ti].ld[k] as f32)),
+            fconst,
+            coef,
+            src,
+        }
+    }
+
+    /// Number of SIMD blocks of `lanes` texels.
+    pub fn blocks(&self, lanes: usize) -> usize {
+        self.w[0].len() / lanes
+    }
+}
+
+/// One foreground pixel as the kernels read it.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Px {
+    /// Normal.
+    pub n: [f32; 3],
+    /// |n|^2 - 1, from f64.
+    pub nn_m1: f32,
+    /// View direction (perspective).
+    pub wp: [f32; 3],
+}
+
+/// The pixels of a prepared scene.
+pub fn pixels(prep: &Prepared) -> Vec<Px> {
+    prep.pixels
+        .iter()
+        .map(|p| Px {
+            n: p.n.map(|v| v as f32),
+            nn_m1: p.nn_m1 as f32,
+            wp: p.wp.map(|v| v as f32),
+        })
+        .collect()
+}

@@ -1,0 +1,348 @@
+//! The fast f32 CPU path against the f64 reference on seeded scenes, at every SIMD level
+//! this machine has; its determinism across thread counts; sharp lobes.
+//!
+//! Tolerances: image within 1e-5 of its largest value, each gradient within 1e-4 of its
+//! largest value. The image sums run in f32 over groups of 256 texels and then in f64, so
+//! its error is a few f32 roundings of the largest terms (~1e-6 at exponents up to 60);
+//! gradients add the f32 rounding of x^m1 ln x and of m1 x^(m1 - 1) near x = 0.
+
+mod common;
+
+use common::{Rng, assert_close, flat32, flat64, random_material, random_scene};
+use matedit::cpu::{FastCpu, SimdLevel};
+use matedit::prepare::Prepared;
+use matedit::{Batch, Camera, Convention, EnvMap, Image, Material, NormalMap, Scene, reference};
+
+const IMAGE_TOL: f64 = 1e-5;
+const GRAD_TOL: f64 = 1e-4;
+
+fn max_abs(v: &[f64]) -> f64 {
+    v.iter().fold(0.0f64, |a, b| a.max(b.abs()))
+}
+
+/// Every level this CPU has, widest first (scalar is always there).
+fn levels() -> Vec<FastCpu> {
+    let found: Vec<FastCpu> = SimdLevel::ALL
+        .into_iter()
+        .filter_map(FastCpu::with_level)
+        .collect();
+    let names: Vec<&str> = found.iter().map(|c| c.level().name()).collect();
+    eprintln!("fast CPU levels on this machine: {names:?}");
+    assert!(found.iter().any(|c| c.level() == SimdLevel::Scalar));
+    found
+}
+
+fn upstream(w: usize, h: usize, seed: u64) -> Vec<[f32; 3]> {
+    let mut rng = Rng::new(seed);
+    (0..w * h)
+        .map(|_| [0; 3].map(|_: i32| rng.uniform(-1.0, 1.0) as f32))
+        .collect()
+}
+
+/// Forward and backward of every scene of `batch` at every level against the reference.
+fn compare(test: &str, batch: &Batch) {
+    compare_tol(test, batch, IMAGE_TOL, GRAD_TOL);
+}
+
+fn compare_tol(test: &str, batch: &Batch, image_tol: f64, grad_tol: f64) {
+    for (b, scene) in batch.scenes().iter().enumerate() {
+        let prep = Prepared::new(scene);
+        let want = flat64(&reference::forward(&prep));
+        assert!(max_abs(&want) > 0.0, "{test}: the image is black");
+        let up = upstream(prep.width, prep.height, 99 + b as u64);
+        let gu: Vec<[f64; 3]> = up.iter().map(|p| p.map(f64::from)).collect();
+        let r = reference::backward(&prep, &gu);
+        for cpu in levels() {
+            let level = cpu.level().name();
+            let got = flat32(&cpu.forward(&prep));
+            assert_close(
+                &format!("{test} scene {b} {level} image"),
+                &got,
+                &want,
+                image_tol * max_abs(&want),
+                0.0,
+            );
+            let g = cpu.backward(&prep, &up);
+            for (name, got, want) in [
+                ("dL", flat32(&g.d_env), flat64(&r.d_env)),
+                ("dn", flat32(&g.d_normals), flat64(&r.d_normals)),
+                (
+                    "dctrl",
+                    g.d_ctrl.iter().map(|&v| v as f64).collect(),
+                    r.d_ctrl.to_vec(),
+                ),
+            ] {
+                assert!(max_abs(&want) > 0.0, "{test}: {name} is all zero");
+                assert_close(
+                    &format!("{test} scene {b} {level} {name}"),
+                    &got,
+                    &want,
+                    grad_tol * max_abs(&want),
+                    0.0,
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn forward_backward_64x128_env_equirect() {
+    let mut rng = Rng::new(11);
+    let s = random_scene(
+        &mut rng,
+        12,
+        10,
+        64,
+        128,
+        Convention::Equirect,
+        Camera::Orthographic,
+    );
+    compare("64x128 equirect", &Batch::single(s).unwrap());
+}
+
+#[test]
+fn forward_backward_non_square_paper() {
+    let mut rng = Rng::new(12);
+    let s = random_scene(
+        &mut rng,
+        13,
+        7,
+        16,
+        32,
+        Convention::Paper,
+        Camera::Orthographic,
+    );
+    compare("13x7 paper", &Batch::single(s).unwrap());
+}
+
+#[test]
+fn forward_backward_batch_of_3_through_the_renderer() {
+    let mut rng = Rng::new(13);
+    let scenes: Vec<Scene> = (0..3)
+        .map(|_| {
+            random_scene(
+                &mut rng,
+                9,
+                11,
+                16,
+                32,
+                Convention::Equirect,
+                Camera::Orthographic,
+            )
+        })
+        .collect();
+    let batch = Batch::new(scenes).unwrap();
+    compare("batch of 3", &batch);
+    // the same through the public API, one call for the batch
+    let renderer = matedit::Renderer::with_backend(Box::new(FastCpu::best()));
+    let images = renderer.render(&batch).unwrap();
+    let ups: Vec<Image> = (0..3)
+        .map(|b| Image {
+            width: 9,
+            height: 11,
+            pixels: upstream(9, 11, 99 + b),
+        })
+        .collect();
+    let grads = renderer.backward(&batch, &ups).unwrap();
+    for (b, scene) in batch.scenes().iter().enumerate() {
+        let prep = Prepared::new(scene);
+        let want = flat64(&reference::forward(&prep));
+        let tol = IMAGE_TOL * max_abs(&want);
+        assert_close(
+            "renderer image",
+            &flat32(&images[b].pixels),
+            &want,
+            tol,
+            0.0,
+        );
+        let gu: Vec<[f64; 3]> = ups[b].pixels.iter().map(|p| p.map(f64::from)).collect();
+        let r = reference::backward(&prep, &gu);
+        let want = flat64(&r.d_env);
+        let tol = GRAD_TOL * max_abs(&want);
+        assert_close("renderer dL", &flat32(&grads[b].d_env), &want, tol, 0.0);
+    }
+}
+
+#[test]
+fn forward_backward_perspective_both_conventions() {
+    for (seed, conv) in [(14, Convention::Equirect), (15, Convention::Paper)] {
+        let mut rng = Rng::new(seed);
+        let s = random_scene(
+            &mut rng,
+            10,
+            8,
+            16,
+            32,
+            conv,
+            Camera::Perspective { fov_y_deg: 50.0 },
+        );
+        compare(&format!("perspective {conv:?}"), &Batch::single(s).unwrap());
+    }
+}
+
+#[test]
+fn forward_backward_presets_with_constant_and_zero_lobes() {
+    // the built-in presets have diffuse (constant) lobes, unused (scale 0) lobes and
+    // exponents shared across channels
+    for camera in [
+        Camera::Orthographic,
+        Camera::Perspective { fov_y_deg: 40.0 },
+    ] {
+        let mut rng = Rng::new(16);
+        let scenes = matedit::presets::names()
+            .iter()
+            .map(|name| {
+                let mut s = random_scene(&mut rng, 8, 8, 16, 32, Convention::Equirect, camera);
+                s.material = matedit::presets::lookup(name).expect("preset");
+                s
+            })
+            .collect();
+        compare(&format!("presets {camera:?}"), &Batch::new(scenes).unwrap());
+    }
+}
+
+#[test]
+fn forward_backward_mixed_lobes_and_shared_terms() {
+    // lobe 0: constant in channel 0, active elsewhere; lobe 1: the same curves in all
+    // channels (one shared evaluation); lobe 2: scale 0 in channel 1 only
+    let mut rng = Rng::new(17);
+    let mut ctrl = random_material(&mut rng, (0.05, 1.5), (1.0, 40.0)).ctrl;
+    use matedit::material::idx;
+    for j in 0..6 {
+        ctrl[idx(0, 0, 1, j)] = 0.0;
+        for k in 1..3 {
+            ctrl[idx(k, 1, 0, j)] = ctrl[idx(0, 1, 0, j)];
+            ctrl[idx(k, 1, 1, j)] = ctrl[idx(0, 1, 1, j)];
+        }
+        ctrl[idx(1, 2, 0, j)] = 0.0;
+    }
+    for camera in [
+        Camera::Orthographic,
+        Camera::Perspective { fov_y_deg: 70.0 },
+    ] {
+        let mut s = random_scene(&mut rng, 9, 7, 16, 32, Convention::Equirect, camera);
+        s.material = Material::new("mixed", &ctrl).unwrap();
+        compare(
+            &format!("mixed lobes {camera:?}"),
+            &Batch::single(s).unwrap(),
+        );
+    }
+}
+
+#[test]
+fn forward_backward_non_unit_normals_and_background() {
+    let mut rng = Rng::new(18);
+    let mut s = random_scene(
+        &mut rng,
+        11,
+        9,
+        16,
+        32,
+        Convention::Equirect,
+        Camera::Orthographic,
+    );
+    let mut n = s.normals.normals.clone();
+    for (i, v) in n.iter_mut().enumerate() {
+        // |n| > 1 lets x exceed 1; exponents up to 60 keep x^m1 moderate at 1.02
+        let scale = [0.5f32, 1.0, 1.02][i % 3];
+        *v = v.map(|c| c * scale);
+    }
+    s.normals = NormalMap::new(11, 9, n).unwrap();
+    compare("non-unit normals", &Batch::single(s).unwrap());
+}
+
+/// A sharp lobe under a bright, smooth sky: the lobe argument x is near 1 where it matters.
+fn sharp_scene(m1: f64, camera: Camera) -> Scene {
+    let m0 = 5.0;
+    let (hl, wl) = (32, 64);
+    let texels = (0..hl * wl)
+        .map(|i| {
+            let r = (i / wl) as f32 / hl as f32;
+            [1.0 + r, 0.5 + 0.5 * r, 2.0 - r]
+        })
+        .collect();
+    Scene {
+        normals: NormalMap::sphere(48),
+        env: EnvMap::new(hl, wl, Convention::Equirect, texels).unwrap(),
+        material: Material::constant("sharp", [(0.3, 0.0), (m0, m1), (0.0, 0.0)]).unwrap(),
+        camera,
+    }
+}
+
+#[test]
+fn sharp_lobes_stay_within_tolerance() {
+    for m1 in [1e3, 1e4] {
+        for camera in [
+            Camera::Orthographic,
+            Camera::Perspective { fov_y_deg: 30.0 },
+        ] {
+            let s = sharp_scene(m1, camera);
+            compare_tol(
+                &format!("sharp m1 = {m1} {camera:?}"),
+                &Batch::single(s).unwrap(),
+                GRAD_TOL,
+                GRAD_TOL,
+            );
+        }
+    }
+}
+
+/// Bitwise-equal results with 1 and 2 threads, and between two runs.
+#[test]
+fn deterministic_across_threads_and_runs() {
+    let mut rng = Rng::new(19);
+    // enough pixels for several backward chunks
+    let s = random_scene(
+        &mut rng,
+        48,
+        50,
+        16,
+        32,
+        Convention::Equirect,
+        Camera::Perspective { fov_y_deg: 45.0 },
+    );
+    let prep = Prepared::new(&s);
+    let up = upstream(48, 50, 5);
+    let cpu = FastCpu::best();
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| (cpu.forward(&prep), cpu.backward(&prep, &up)))
+    };
+    let (i1, g1) = run(1);
+    let (i2, g2) = run(2);
+    let (i3, g3) = run(2);
+    let bits = |v: &[[f32; 3]]| v.iter().flatten().map(|x| x.to_bits()).collect::<Vec<_>>();
+    for (i, g) in [(&i2, &g2), (&i3, &g3)] {
+        assert_eq!(bits(&i1), bits(i), "image differs");
+        assert_eq!(bits(&g1.d_env), bits(&g.d_env), "dL differs");
+        assert_eq!(bits(&g1.d_normals), bits(&g.d_normals), "dn differs");
+        let c = |v: &[f32; 108]| v.map(f32::to_bits);
+        assert_eq!(c(&g1.d_ctrl), c(&g.d_ctrl), "dctrl differs");
+    }
+}
+
+#[test]
+fn describe_names_the_level_and_threads() {
+    use matedit::Backend;
+    let d = FastCpu::best().describe();
+    assert!(d.starts_with("cpu: f32 "), "{d}");
+    assert!(d.contains("thread"), "{d}");
+}
+
+#[test]
+fn constant_light_matches_the_analytic_value() {
+    let m0 = 0.7;
+    let scene = Scene {
+        normals: NormalMap::sphere(16),
+        env: EnvMap::constant(64, 128, Convention::Equirect, [1.0; 3]).unwrap(),
+        material: Material::constant("flat", [(m0, 0.0), (0.0, 0.0), (0.0, 0.0)]).unwrap(),
+        camera: Camera::Orthographic,
+    };
+    let want = std::f64::consts::PI * f64::exp_m1(m0);
+    let img = FastCpu::best().forward(&Prepared::new(&scene));
+    let centre = img[8 * 16 + 8][0] as f64;
+    assert!((centre / want - 1.0).abs() < 1e-3, "{centre} vs {want}");
+}
