@@ -15,7 +15,8 @@ fn backward_normal(@builtin(global_invocation_id) gid: vec3<u32>) {
     if p >= params.n_pixels {
         return;
     }
-    let n = pixels[p].n.xyz;
+    let n = pixels[p].n;
+    let nn_m1 = pixels[p].nn_m1;
     let wp = pixels[p].wp.xyz;
     let g = pixels[p].g.xyz;
     var acc = vec3<f32>(0.0);
@@ -27,8 +28,9 @@ fn backward_normal(@builtin(global_invocation_id) gid: vec3<u32>) {
                 continue;
             }
             let h = texels[i].h.xyz;
-            let x = max(0.0, dot(h, n));
-            let lnx = lobe_log(x);
+            let xl = lobe_x(h, n, nn_m1);
+            let x = xl.x;
+            let lnx = xl.y;
             // constant lobes are in fconst (no dependence on x); lobes with scale 0 are left out
             var f = texels[i].fconst.xyz;
             var dx = vec3<f32>(0.0);
@@ -52,8 +54,9 @@ fn backward_normal(@builtin(global_invocation_id) gid: vec3<u32>) {
             let hv = half_vector(w, wp);
             let h = hv.xyz;
             let b = spline_basis(hv.w);
-            let x = max(0.0, dot(h, n));
-            let lnx = lobe_log(x);
+            let xl = lobe_x(h, n, nn_m1);
+            let x = xl.x;
+            let lnx = xl.y;
             // active lobes, then constant lobes (no dependence on x); scale 0 left out
             var f = vec3<f32>(0.0);
             var dx = vec3<f32>(0.0);

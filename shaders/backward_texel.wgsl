@@ -92,13 +92,14 @@ fn backward_texel(@builtin(global_invocation_id) gid: vec3<u32>) {
         var d0b = vec3<f32>(0.0);
         var d1b = vec3<f32>(0.0);
         for (var p = 0u; p < params.n_pixels; p++) {
-            let n = pixels[p].n.xyz;
+            let n = pixels[p].n;
             let c = dot(n, w);
             if c <= 0.0 {
                 continue;
             }
-            let x = max(0.0, dot(h, n));
-            let lnx = lobe_log(x);
+            let xl = lobe_x(h, n, pixels[p].nn_m1);
+            let x = xl.x;
+            let lnx = xl.y;
             let gc = pixels[p].g.xyz * c;
             let lr = lobe_grads(x, lnx, m0r, m1r);
             let lg = lobe_grads(x, lnx, m0g, m1g);
@@ -150,15 +151,16 @@ fn backward_texel(@builtin(global_invocation_id) gid: vec3<u32>) {
         a_b1_5 = d1b * tb[5];
     } else {
         for (var p = 0u; p < params.n_pixels; p++) {
-            let n = pixels[p].n.xyz;
+            let n = pixels[p].n;
             let c = dot(n, w);
             if c <= 0.0 {
                 continue;
             }
             let hv = half_vector(w, pixels[p].wp.xyz);
             let b = spline_basis(hv.w);
-            let x = max(0.0, dot(hv.xyz, n));
-            let lnx = lobe_log(x);
+            let xl = lobe_x(hv.xyz, n, pixels[p].nn_m1);
+            let x = xl.x;
+            let lnx = xl.y;
             let gc = pixels[p].g.xyz * c;
             let lr = lobe_grads(x, lnx, pair_coef(b, 0u), pair_coef(b, 6u));
             let lg = lobe_grads(x, lnx, pair_coef(b, 12u), pair_coef(b, 18u));

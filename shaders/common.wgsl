@@ -56,8 +56,10 @@ struct Texel {
 
 // One foreground pixel. Kept in sync with `Pixel` in src/gpu/layout.rs.
 struct Pixel {
-    // xyz: the normal as given
-    n: vec4<f32>,
+    // the normal as given
+    n: vec3<f32>,
+    // |n|^2 - 1, computed on the host in f64 (for lobe_x)
+    nn_m1: f32,
     // xyz: the view direction w_p
     wp: vec4<f32>,
     // xyz: the upstream gradient dLoss/dI (backward passes)
@@ -138,6 +140,31 @@ fn stable_expm1(y: vec3<f32>) -> vec3<f32> {
 // log(x) for the lobe powers; finite for every x.
 fn lobe_log(x: f32) -> f32 {
     return log(max(x, TINY));
+}
+
+// The lobe argument x = max(0, dot(h, n)) and ln x (x: .x, ln x: .y) for the unit half
+// vector h (h = 0 where it is undefined: then x = 0) and the normal n, with
+// nn_m1 = |n|^2 - 1 from the host. x^m1 = exp(m1 ln x) with m1 up to 1e4 multiplies any
+// absolute error of ln x by m1, so where x is near 1 neither 1 - x nor ln x may lose digits:
+// - dot(h, n) = 1 - d with d = (|h - n|^2 - nn_m1) / 2: h - n is exact where h is near n,
+//   so d keeps its digits, and an error of |h| off 1 counts only times |h - n|;
+// - ln x = log1p(-d) = -2 atanh(z), z = d / (2 - d), by its series where |z| <= 1/3
+//   (-1 <= d <= 1/2; truncation < 2e-9 relative), because log(u) itself is only held to an
+//   absolute error of 2^-21 for u in [0.5, 2] (WGSL, Vulkan), which is 5e-3 of x^m1 at
+//   m1 = 1e4; elsewhere log(max(x, TINY)) (relative error bound there; 1 - d is exact for
+//   1/2 <= d <= 1).
+// Mirrors `lobe_x` in src/reference/common.rs, which takes ln x as log1p(-d) in f64.
+fn lobe_x(h: vec3<f32>, n: vec3<f32>, nn_m1: f32) -> vec2<f32> {
+    let v = h - n;
+    let d = 0.5 * (dot(v, v) - nn_m1);
+    let x = select(0.0, max(0.0, 1.0 - d), any(h != vec3<f32>(0.0)));
+    let z = d / (2.0 - d);
+    let z2 = z * z;
+    let series = -2.0 * z * (1.0 + z2 * ((1.0 / 3.0) + z2 * (0.2 + z2 * ((1.0 / 7.0)
+        + z2 * ((1.0 / 9.0) + z2 * ((1.0 / 11.0) + z2 * ((1.0 / 13.0)
+        + z2 * (1.0 / 15.0))))))));
+    let near_one = x > 0.0 && d >= -1.0 && d <= 0.5;
+    return vec2<f32>(x, select(lobe_log(x), series, near_one));
 }
 
 // x^e per lobe, with x^e = 0 at x = 0 for e > 0 and x^0 = 1.

@@ -14,7 +14,8 @@ fn forward(@builtin(global_invocation_id) gid: vec3<u32>) {
     if p >= params.n_pixels {
         return;
     }
-    let n = pixels[p].n.xyz;
+    let n = pixels[p].n;
+    let nn_m1 = pixels[p].nn_m1;
     let wp = pixels[p].wp.xyz;
     var acc = vec3<f32>(0.0);
     if params.perspective == 0u {
@@ -24,8 +25,9 @@ fn forward(@builtin(global_invocation_id) gid: vec3<u32>) {
             if c <= 0.0 {
                 continue;
             }
-            let x = max(0.0, dot(texels[i].h.xyz, n));
-            let lnx = lobe_log(x);
+            let xl = lobe_x(texels[i].h.xyz, n, nn_m1);
+            let x = xl.x;
+            let lnx = xl.y;
             // constant lobes are in fconst; lobes with scale 0 are left out
             var f = texels[i].fconst.xyz;
             for (var a = 0u; a < params.n_lobes; a++) {
@@ -44,8 +46,9 @@ fn forward(@builtin(global_invocation_id) gid: vec3<u32>) {
             }
             let hv = half_vector(w, wp);
             let b = spline_basis(hv.w);
-            let x = max(0.0, dot(hv.xyz, n));
-            let lnx = lobe_log(x);
+            let xl = lobe_x(hv.xyz, n, nn_m1);
+            let x = xl.x;
+            let lnx = xl.y;
             // active lobes, then constant lobes (x^0 = 1); lobes with scale 0 are left out
             var f = vec3<f32>(0.0);
             for (var q = 0u; q < params.n_lobes; q++) {

@@ -111,6 +111,7 @@ fn shared_structs_match_rust_layout() {
         "Pixel",
         &[
             ("n", offset_of!(Pixel, n)),
+            ("nn_m1", offset_of!(Pixel, nn_m1)),
             ("wp", offset_of!(Pixel, wp)),
             ("g", offset_of!(Pixel, g)),
         ],

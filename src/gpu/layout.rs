@@ -164,8 +164,10 @@ impl Texel {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
 pub struct Pixel {
-    /// xyz: the normal.
-    pub n: [f32; 4],
+    /// The normal.
+    pub n: [f32; 3],
+    /// |n|^2 - 1, computed in f64 ([`PixelRec::nn_m1`]), for `lobe_x`.
+    pub nn_m1: f32,
     /// xyz: the view direction.
     pub wp: [f32; 4],
     /// xyz: the upstream gradient.
@@ -177,7 +179,8 @@ impl Pixel {
     /// The GPU record of a pixel with upstream gradient `g`.
     pub fn new(p: &PixelRec, g: [f32; 3]) -> Self {
         Pixel {
-            n: [p.n[0] as f32, p.n[1] as f32, p.n[2] as f32, 0.0],
+            n: [p.n[0] as f32, p.n[1] as f32, p.n[2] as f32],
+            nn_m1: p.nn_m1 as f32,
             wp: [p.wp[0] as f32, p.wp[1] as f32, p.wp[2] as f32, 0.0],
             g: [g[0], g[1], g[2], 0.0],
         }

@@ -2,7 +2,7 @@
 
 use rayon::prelude::*;
 
-use super::common::{lobe_dpow, lobe_log, lobe_pow, pair_terms, stable_expm1};
+use super::common::{lobe_dpow, lobe_pow, lobe_x, pair_terms, stable_expm1};
 use crate::prepare::{Prepared, dot};
 
 /// dLoss/dn per pixel (row-major, 0 on background) for upstream `g` (row-major).
@@ -23,8 +23,7 @@ pub fn backward_normal(prep: &Prepared, g: &[[f64; 3]]) -> Vec<[f64; 3]> {
                     continue;
                 }
                 let (h, m, _) = pair_terms(&prep.ctrl, perspective, t, px);
-                let x = dot(h, n).max(0.0);
-                let lnx = lobe_log(x);
+                let (x, lnx) = lobe_x(h, n, px.nn_m1);
                 let mut along_w = 0.0;
                 let mut along_h = 0.0;
                 for k in 0..3 {

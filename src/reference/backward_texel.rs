@@ -3,7 +3,7 @@
 
 use rayon::prelude::*;
 
-use super::common::{channel_coef, lobe_grads, lobe_log, pair_terms};
+use super::common::{channel_coef, lobe_grads, lobe_x, pair_terms};
 use crate::material::{N_PARAMS, idx};
 use crate::prepare::{Prepared, dot};
 use crate::spline::spline_basis;
@@ -31,8 +31,7 @@ pub fn backward_texel(prep: &Prepared, g: &[[f64; 3]]) -> Vec<([f64; 3], [f64; N
                 } else {
                     [0.0; 6]
                 };
-                let x = dot(h, n).max(0.0);
-                let lnx = lobe_log(x);
+                let (x, lnx) = lobe_x(h, n, px.nn_m1);
                 let gp = g[px.index];
                 for k in 0..3 {
                     let gc = gp[k] * c;

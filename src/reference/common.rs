@@ -1,6 +1,6 @@
 //! The lobe math of shaders/common.wgsl in f64, with the same helper names.
 
-use crate::prepare::{N_COEF_VALUES, PixelRec, TexelRec, coefficients, half_vector};
+use crate::prepare::{N_COEF_VALUES, PixelRec, TexelRec, coefficients, dot, half_vector};
 
 /// log(x) is taken of max(x, TINY), as in the shaders.
 pub const TINY: f64 = 1e-30;
@@ -15,6 +15,25 @@ pub fn stable_expm1(y: f64) -> f64 {
 /// log(x) for the lobe powers; finite for every x.
 pub fn lobe_log(x: f64) -> f64 {
     x.max(TINY).ln()
+}
+
+/// The lobe argument x = max(0, h . n) and ln x for the unit half vector `h` (0 where it
+/// is undefined: then x = 0) and the normal `n` with `nn_m1` = |n|^2 - 1, as in the shaders:
+/// h . n = 1 - d with d = (|h - n|^2 - nn_m1) / 2, and ln x = log1p(-d) (the shaders' way
+/// gives the same value to rounding).
+pub fn lobe_x(h: [f64; 3], n: [f64; 3], nn_m1: f64) -> (f64, f64) {
+    if h == [0.0; 3] {
+        return (0.0, lobe_log(0.0));
+    }
+    let v = [h[0] - n[0], h[1] - n[1], h[2] - n[2]];
+    let d = 0.5 * (dot(v, v) - nn_m1);
+    let x = (1.0 - d).max(0.0);
+    let lnx = if x > 0.0 {
+        (-d).ln_1p().max(TINY.ln())
+    } else {
+        lobe_log(0.0)
+    };
+    (x, lnx)
 }
 
 /// x^e, with x^e = 0 at x = 0 for e > 0 and x^0 = 1.

@@ -2,7 +2,7 @@
 
 use rayon::prelude::*;
 
-use super::common::{lobe_log, lobe_pow, pair_terms, stable_expm1};
+use super::common::{lobe_pow, lobe_x, pair_terms, stable_expm1};
 use crate::prepare::{Prepared, dot};
 
 /// The image of a prepared scene, row-major, 0 on background pixels.
@@ -21,8 +21,7 @@ pub fn forward(prep: &Prepared) -> Vec<[f64; 3]> {
                     continue;
                 }
                 let (h, m, _) = pair_terms(&prep.ctrl, perspective, t, px);
-                let x = dot(h, n).max(0.0);
-                let lnx = lobe_log(x);
+                let (x, lnx) = lobe_x(h, n, px.nn_m1);
                 for k in 0..3 {
                     // constant lobes (x^0 = 1): summed per texel for orthographic cameras,
                     // per pair for perspective ones; lobes with scale 0 are left out
