@@ -155,6 +155,11 @@ impl FastCpu {
         self.level
     }
 
+    /// Runs a SIMD operation at this level.
+    fn dispatch<Op: pulp::WithSimd>(&self, op: Op) -> Op::Output {
+        self.arch.dispatch(op)
+    }
+
     /// The image of a prepared scene, row-major, 0 on background pixels.
     pub fn forward(&self, prep: &Prepared) -> Vec<[f32; 3]> {
         let perspective = !prep.camera.is_orthographic();
@@ -182,7 +187,7 @@ impl FastCpu {
         px.par_chunks(FORWARD_CHUNK)
             .zip(sums.par_chunks_mut(FORWARD_CHUNK))
             .for_each(|(px, out)| {
-                self.arch.dispatch(Forward {
+                self.dispatch(Forward {
                     table: &table,
                     setup: &setup,
                     px,
@@ -240,7 +245,7 @@ impl FastCpu {
                     .zip(gp.chunks(BACKWARD_CHUNK))
                     .zip(part.dn.chunks_mut(BACKWARD_CHUNK))
                 {
-                    self.arch.dispatch(Backward {
+                    self.dispatch(Backward {
                         table: &table,
                         setup: &setup,
                         px,
