@@ -5,7 +5,8 @@
 use pulp::{Simd, WithSimd};
 
 use super::forward::GROUP_TEXELS;
-use super::pair::{Cols, DPOW_MAX, Setup, geo, lobes};
+use super::math::{exp2, expm1};
+use super::pair::{Cols, DPOW_MAX, Setup, coef, geo, underflows};
 use super::table::{Px, TexelTable};
 use crate::material::idx;
 use crate::spline::N_CTRL_POINTS;
@@ -55,56 +56,86 @@ impl WithSimd for Backward<'_> {
                     let Some(g) = geo(s, &cols, self.setup, p, b) else {
                         continue;
                     };
-                    let lv = lobes(s, &cols, self.setup, &g, b);
                     let acc = &mut tacc[(b - g0) * stride..(b - g0 + 1) * stride];
                     let inv_x = s.div_f32s(one, s.max_f32s(g.x, s.splat_f32s(1e-30)));
+                    let gl: [S::f32s; 3] =
+                        std::array::from_fn(|k| s.mul_f32s(s.splat_f32s(gp[k]), cols.ld[k][b]));
+                    // weights of this pair in the texel's sums for dctrl
+                    let wk = gl.map(|v| s.mul_f32s(v, g.c));
+                    let wk_ln = wk.map(|v| s.mul_f32s(v, g.lnx));
+                    let mut f = [zero; 3];
+                    let mut dx = [zero; 3];
+                    for grp in &plan.groups {
+                        // x^m1 and m1 x^(m1 - 1) (clamped, 0 at x = 0) of the group
+                        let (xb, dp) = match grp.exp_col {
+                            Some(col) => {
+                                let m1 = coef(s, &cols, self.setup, &g, b, col);
+                                let t = s.mul_f32s(m1, g.l2);
+                                if underflows(s, t, g.up) {
+                                    continue;
+                                }
+                                let xb = exp2(s, t);
+                                let dp = s.min_f32s(
+                                    s.mul_f32s(s.mul_f32s(m1, xb), inv_x),
+                                    s.splat_f32s(DPOW_MAX),
+                                );
+                                (Some(xb), s.select_f32s(g.pos, dp, zero))
+                            }
+                            None => (None, zero),
+                        };
+                        for lobe in &grp.lobes {
+                            let slot = |k: usize| 3 + (k * 3 + lobe.slot[k]) * 2 * per_t;
+                            if lobe.zero_scale {
+                                // E = 1: only dLoss/dm0 = x^m1
+                                let t1 = xb.unwrap_or(one);
+                                for k in 0..3 {
+                                    if lobe.channels & (1 << k) != 0 {
+                                        let i0 = slot(k);
+                                        let d0 = s.mul_f32s(wk[k], t1);
+                                        add_share(
+                                            s,
+                                            perspective,
+                                            &g.basis,
+                                            &mut acc[i0..i0 + per_t],
+                                            d0,
+                                        );
+                                    }
+                                }
+                                continue;
+                            }
+                            let a = coef(s, &cols, self.setup, &g, b, lobe.a_col);
+                            let em1 = expm1(s, xb.map_or(a, |xb| s.mul_f32s(a, xb)));
+                            let e1 = s.add_f32s(em1, one);
+                            // E x^m1, E m0 x^m1 and E m0 m1 x^(m1 - 1)
+                            let t1 = xb.map_or(e1, |xb| s.mul_f32s(e1, xb));
+                            let u = s.mul_f32s(t1, a);
+                            let ead = s.mul_f32s(s.mul_f32s(e1, a), dp);
+                            for k in 0..3 {
+                                if lobe.channels & (1 << k) == 0 {
+                                    continue;
+                                }
+                                f[k] = s.add_f32s(f[k], em1);
+                                dx[k] = s.add_f32s(dx[k], ead);
+                                let i0 = slot(k);
+                                let d0 = s.mul_f32s(wk[k], t1);
+                                let d1 = s.mul_f32s(wk_ln[k], u);
+                                add_share(s, perspective, &g.basis, &mut acc[i0..i0 + per_t], d0);
+                                add_share(
+                                    s,
+                                    perspective,
+                                    &g.basis,
+                                    &mut acc[i0 + per_t..i0 + 2 * per_t],
+                                    d1,
+                                );
+                            }
+                        }
+                    }
                     let mut along_w = zero;
                     let mut along_h = zero;
                     for k in 0..3 {
-                        let gk = s.splat_f32s(gp[k]);
-                        let gl = s.mul_f32s(gk, cols.ld[k][b]);
-                        // weight of this pair in the texel's sums for dctrl
-                        let wk = s.mul_f32s(gl, g.c);
-                        let wk_ln = s.mul_f32s(wk, g.lnx);
-                        let mut f = zero;
-                        let mut dx = zero;
-                        for sl in 0..3 {
-                            let Some(l) = plan.lobe_of[k][sl] else {
-                                continue;
-                            };
-                            let lobe = &plan.lobes[l];
-                            let e1 = s.add_f32s(lv.em1[l], one);
-                            f = s.add_f32s(f, lv.em1[l]);
-                            // E x^m1
-                            let t1 = match lobe.exp {
-                                Some(e) => s.mul_f32s(e1, lv.xb[e]),
-                                None => e1,
-                            };
-                            let i0 = 3 + (k * 3 + sl) * 2 * per_t;
-                            let i1 = i0 + per_t;
-                            let d0 = s.mul_f32s(wk, t1);
-                            if lobe.zero_scale {
-                                add_share(s, perspective, &g.basis, &mut acc[i0..i1], d0);
-                                continue;
-                            }
-                            // E m0 x^m1
-                            let u = s.mul_f32s(t1, lv.a[l]);
-                            let d1 = s.mul_f32s(wk_ln, u);
-                            add_share(s, perspective, &g.basis, &mut acc[i0..i1], d0);
-                            add_share(s, perspective, &g.basis, &mut acc[i1..i1 + per_t], d1);
-                            if let Some(e) = lobe.exp {
-                                // m1 x^(m1 - 1), clamped, 0 at x = 0
-                                let dp = s.min_f32s(
-                                    s.mul_f32s(s.mul_f32s(lv.b[e], lv.xb[e]), inv_x),
-                                    s.splat_f32s(DPOW_MAX),
-                                );
-                                let dp = s.select_f32s(g.pos, dp, zero);
-                                dx = s.mul_add_f32s(s.mul_f32s(e1, lv.a[l]), dp, dx);
-                            }
-                        }
-                        acc[k] = s.mul_add_f32s(s.mul_f32s(gk, g.c), f, acc[k]);
-                        along_w = s.mul_add_f32s(gl, f, along_w);
-                        along_h = s.mul_add_f32s(gl, dx, along_h);
+                        acc[k] = s.mul_add_f32s(s.mul_f32s(s.splat_f32s(gp[k]), g.c), f[k], acc[k]);
+                        along_w = s.mul_add_f32s(gl[k], f[k], along_w);
+                        along_h = s.mul_add_f32s(gl[k], dx[k], along_h);
                     }
                     let along_w = s.select_f32s(g.up, along_w, zero);
                     let ch = s.mul_f32s(g.c, along_h);

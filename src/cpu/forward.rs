@@ -3,7 +3,8 @@
 
 use pulp::{Simd, WithSimd};
 
-use super::pair::{Cols, Setup, add_f, geo, lobes};
+use super::math::{exp2, expm1};
+use super::pair::{Cols, Setup, add_channels, coef, geo, underflows};
 use super::table::{Px, TexelTable};
 
 /// Texels per group: each pixel's lane sums run over one group in f32 and are then added
@@ -36,13 +37,31 @@ impl WithSimd for Forward<'_> {
                     let Some(g) = geo(s, &cols, self.setup, p, b) else {
                         continue;
                     };
-                    let lv = lobes(s, &cols, self.setup, &g, b);
                     let mut f = if perspective {
                         [zero; 3]
                     } else {
                         [cols.fconst[0][b], cols.fconst[1][b], cols.fconst[2][b]]
                     };
-                    add_f(s, self.setup.plan, &lv, &mut f);
+                    for grp in &self.setup.plan.groups {
+                        let xb = match grp.exp_col {
+                            Some(col) => {
+                                let t = s.mul_f32s(coef(s, &cols, self.setup, &g, b, col), g.l2);
+                                if underflows(s, t, g.up) {
+                                    continue;
+                                }
+                                Some(exp2(s, t))
+                            }
+                            None => None,
+                        };
+                        for lobe in &grp.lobes {
+                            if lobe.zero_scale {
+                                continue;
+                            }
+                            let a = coef(s, &cols, self.setup, &g, b, lobe.a_col);
+                            let y = xb.map_or(a, |xb| s.mul_f32s(a, xb));
+                            add_channels(s, lobe.channels, expm1(s, y), &mut f);
+                        }
+                    }
                     for k in 0..3 {
                         acc[k] = s.mul_add_f32s(s.mul_f32s(f[k], g.c), cols.ld[k][b], acc[k]);
                     }

@@ -89,10 +89,25 @@ pub fn exp2<S: Simd>(s: S, t: S::f32s) -> S::f32s {
     s.mul_f32s(p, pow2_from_magic(s, z))
 }
 
+/// Below this |y| every lane has k = 0 in [`expm1`]'s reduction (|y| log2 e < 1/2), so
+/// the series alone gives the same bits.
+const EXPM1_SMALL: f32 = 0.34;
+
 /// exp(y) - 1 without cancellation for small |y|, y clamped to [-87, 87]:
-/// y = k ln2 + r with |r| <= ln2/2, expm1(y) = 2^k expm1(r) + (2^k - 1).
+/// y = k ln2 + r with |r| <= ln2/2, expm1(y) = 2^k expm1(r) + (2^k - 1). When every lane
+/// has |y| < 0.34 (k = 0) the reduction is skipped; the result is bitwise the same.
 #[inline(always)]
 pub fn expm1<S: Simd>(s: S, y: S::f32s) -> S::f32s {
+    let abs = s.and_f32s(y, s.transmute_f32s_u32s(s.splat_u32s(0x7FFF_FFFF)));
+    let big = s.greater_than_or_equal_f32s(abs, s.splat_f32s(EXPM1_SMALL));
+    if s.first_true_m32s(big) >= S::F32_LANES {
+        return s.mul_add_f32s(s.mul_f32s(y, y), horner(s, y, &EXPM1_Q), y);
+    }
+    expm1_reduced(s, y)
+}
+
+#[inline(always)]
+fn expm1_reduced<S: Simd>(s: S, y: S::f32s) -> S::f32s {
     let y = s.min_f32s(s.max_f32s(y, s.splat_f32s(-87.0)), s.splat_f32s(87.0));
     let z = s.mul_add_f32s(y, s.splat_f32s(LOG2E), s.splat_f32s(MAGIC));
     let k = s.sub_f32s(z, s.splat_f32s(MAGIC));

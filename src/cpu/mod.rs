@@ -175,7 +175,7 @@ impl FastCpu {
             .flat_map(|k| (0..3).map(move |s| (k, s)))
             .filter(|&(k, s)| has_scale(ctrl, k, s) && !depends_on_x(ctrl, k, s))
             .collect();
-        let table = TexelTable::new(prep, &prep.lit, &plan_columns(&plan), &consts);
+        let table = TexelTable::new(prep, &prep.lit, &plan.columns(), &consts);
         let ctrl32 = ctrl.map(|v| v as f32);
         let setup = Setup {
             plan: &plan,
@@ -208,7 +208,7 @@ impl FastCpu {
         // every lobe: a lobe whose scale is 0 still has a gradient for its scale
         let plan = LobePlan::new(ctrl, |_, _| true);
         let all: Vec<usize> = (0..prep.texels.len()).collect();
-        let table = TexelTable::new(prep, &all, &plan_columns(&plan), &[]);
+        let table = TexelTable::new(prep, &all, &plan.columns(), &[]);
         let ctrl32 = ctrl.map(|v| v as f32);
         let setup = Setup {
             plan: &plan,
@@ -300,13 +300,6 @@ impl FastCpu {
             d_ctrl: d_ctrl.map(|x| x as f32),
         }
     }
-}
-
-/// The coefficient columns a plan reads.
-fn plan_columns(plan: &LobePlan) -> Vec<usize> {
-    let mut cols: Vec<usize> = plan.exps.clone();
-    cols.extend(plan.lobes.iter().map(|l| l.a_col));
-    cols
 }
 
 impl Backend for FastCpu {

@@ -5,8 +5,9 @@
 
 use pulp::Simd;
 
-use super::math::{exp2, expm1, ln_1m};
+use super::math::ln_1m;
 use super::table::{LobePlan, Px, TexelTable};
+
 use crate::prepare::HALF_VECTOR_EPS;
 use crate::spline::N_CTRL_POINTS;
 
@@ -15,8 +16,6 @@ use crate::spline::N_CTRL_POINTS;
 const NEG_BIG: f32 = -3.0e38;
 /// The clamp of m1 x^(m1 - 1) in dL/dn, as in the reference.
 pub const DPOW_MAX: f32 = 1e10;
-/// Most unique lobes (and exponents) a plan can hold: 3 channels x 3 lobes.
-pub const MAX_TERMS: usize = 9;
 
 /// The texel columns of one table, split into SIMD blocks.
 pub struct Cols<'a, S: Simd> {
@@ -280,53 +279,21 @@ pub fn coef<S: Simd>(
     }
 }
 
-/// The plan's lobe terms at one pair: x^b per unique exponent, exp(a x^b) - 1 and a per
-/// unique lobe.
-pub struct Lobes<S: Simd> {
-    pub xb: [S::f32s; MAX_TERMS],
-    pub b: [S::f32s; MAX_TERMS],
-    pub em1: [S::f32s; MAX_TERMS],
-    pub a: [S::f32s; MAX_TERMS],
+/// Whether x^b is exactly 0 (2^t with t <= -127) in every lane above the horizon: then
+/// every lobe of the group adds exactly 0 to the image and the gradients, and the group
+/// is skipped. Sharp lobes are 0 over most of a pixel's hemisphere.
+#[inline(always)]
+pub fn underflows<S: Simd>(s: S, t: S::f32s, up: S::m32s) -> bool {
+    let live = s.and_m32s(s.greater_than_f32s(t, s.splat_f32s(-127.0)), up);
+    s.first_true_m32s(live) >= S::F32_LANES
 }
 
+/// Adds `v` to the channels whose bit is set.
 #[inline(always)]
-pub fn lobes<S: Simd>(s: S, cols: &Cols<'_, S>, setup: &Setup, g: &Geo<S>, blk: usize) -> Lobes<S> {
-    let zero = s.splat_f32s(0.0);
-    let mut out = Lobes {
-        xb: [zero; MAX_TERMS],
-        b: [zero; MAX_TERMS],
-        em1: [zero; MAX_TERMS],
-        a: [zero; MAX_TERMS],
-    };
-    let plan = setup.plan;
-    for (e, &col) in plan.exps.iter().enumerate() {
-        let b = coef(s, cols, setup, g, blk, col);
-        out.b[e] = b;
-        out.xb[e] = exp2(s, s.mul_f32s(b, g.l2));
-    }
-    for (l, lobe) in plan.lobes.iter().enumerate() {
-        if lobe.zero_scale {
-            continue;
-        }
-        let a = coef(s, cols, setup, g, blk, lobe.a_col);
-        out.a[l] = a;
-        let y = match lobe.exp {
-            Some(e) => s.mul_f32s(a, out.xb[e]),
-            None => a,
-        };
-        out.em1[l] = expm1(s, y);
-    }
-    out
-}
-
-/// Sums f^k over the plan's lobes into `f` (which holds the constant share).
-#[inline(always)]
-pub fn add_f<S: Simd>(s: S, plan: &LobePlan, lobes: &Lobes<S>, f: &mut [S::f32s; 3]) {
-    for (l, lobe) in plan.lobes.iter().enumerate() {
-        for (k, fk) in f.iter_mut().enumerate() {
-            if lobe.channels & (1 << k) != 0 {
-                *fk = s.add_f32s(*fk, lobes.em1[l]);
-            }
+pub fn add_channels<S: Simd>(s: S, channels: u8, v: S::f32s, f: &mut [S::f32s; 3]) {
+    for (k, fk) in f.iter_mut().enumerate() {
+        if channels & (1 << k) != 0 {
+            *fk = s.add_f32s(*fk, v);
         }
     }
 }

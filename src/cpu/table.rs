@@ -16,28 +16,33 @@ pub const PAD: usize = 16;
 const NO_HALF_VECTOR: f32 = 1.0;
 
 /// Which lobe terms one pair needs, with terms shared where the material repeats itself:
-/// channels whose lobe has the same exponent control points share x^m1, and channels with
-/// the same scale and exponent points share the whole lobe.
+/// channels whose lobe has the same exponent control points share x^m1 (one group), and
+/// channels with the same scale and exponent points share the whole lobe.
 #[derive(Clone, Debug, Default)]
 pub struct LobePlan {
-    /// Unique exponent curves: the coefficient column (k * 3 + s) * 2 + 1 that holds each.
-    pub exps: Vec<usize>,
-    /// Unique lobes.
-    pub lobes: Vec<PlanLobe>,
-    /// (k, s) -> the unique lobe it evaluates, for the lobes the plan holds.
-    pub lobe_of: [[Option<usize>; 3]; 3],
+    /// Lobes grouped by their exponent curve.
+    pub groups: Vec<ExpGroup>,
 }
 
-/// One unique lobe: exp(a x^b) - 1.
+/// The lobes that share one exponent curve.
+#[derive(Clone, Debug)]
+pub struct ExpGroup {
+    /// Coefficient column (k * 3 + s) * 2 + 1 of the exponent, or None for an exponent
+    /// that is 0 everywhere (x^0 = 1).
+    pub exp_col: Option<usize>,
+    /// Its unique lobes.
+    pub lobes: Vec<PlanLobe>,
+}
+
+/// One unique lobe: exp(a x^b) - 1, evaluated once for every (k, s) it stands for.
 #[derive(Clone, Copy, Debug)]
 pub struct PlanLobe {
     /// Coefficient column (k * 3 + s) * 2 of its scale a.
     pub a_col: usize,
-    /// Its exponent in [`LobePlan::exps`], or None for an exponent that is 0 everywhere
-    /// (x^0 = 1).
-    pub exp: Option<usize>,
-    /// Bit k set: channel k adds this lobe.
+    /// Bit k set: channel k has this lobe, as lobe `slot[k]`.
     pub channels: u8,
+    /// The lobe index s for each channel in `channels`.
+    pub slot: [usize; 3],
     /// Every scale point is 0: the lobe adds nothing to f (exp(0) - 1), only its x^b to
     /// the gradient of its scale.
     pub zero_scale: bool,
@@ -48,43 +53,67 @@ fn curve(ctrl: &[f64; N_PARAMS], k: usize, s: usize, t: usize) -> [f64; N_CTRL_P
 }
 
 impl LobePlan {
-    /// The plan for the lobes whose (k, s) `keep` accepts, given the scale and exponent
-    /// curves: a (k, s) joins an existing unique lobe when both curves are equal.
+    /// The plan for the lobes whose (k, s) `keep` accepts: a (k, s) joins an existing
+    /// unique lobe when both its curves are equal to that lobe's, and an existing group
+    /// when its exponent curve is.
     pub fn new(ctrl: &[f64; N_PARAMS], keep: impl Fn(usize, usize) -> bool) -> Self {
         let mut plan = LobePlan::default();
         let mut exp_curves: Vec<[f64; N_CTRL_POINTS]> = Vec::new();
-        let mut lobe_curves: Vec<([f64; N_CTRL_POINTS], [f64; N_CTRL_POINTS])> = Vec::new();
         for s in 0..3 {
             for k in 0..3 {
                 if !keep(k, s) {
                     continue;
                 }
                 let (sc, ex) = (curve(ctrl, k, s, 0), curve(ctrl, k, s, 1));
-                if let Some(l) = lobe_curves.iter().position(|c| *c == (sc, ex)) {
-                    plan.lobes[l].channels |= 1 << k;
-                    plan.lobe_of[k][s] = Some(l);
-                    continue;
-                }
-                let exp = if ex.iter().all(|&v| v == 0.0) {
-                    None
-                } else if let Some(e) = exp_curves.iter().position(|c| *c == ex) {
-                    Some(e)
-                } else {
-                    exp_curves.push(ex);
-                    plan.exps.push((k * 3 + s) * 2 + 1);
-                    Some(plan.exps.len() - 1)
+                let zero_exp = ex.iter().all(|&v| v == 0.0);
+                let g = match exp_curves.iter().position(|c| *c == ex) {
+                    Some(g) => g,
+                    None => {
+                        exp_curves.push(ex);
+                        plan.groups.push(ExpGroup {
+                            exp_col: (!zero_exp).then_some((k * 3 + s) * 2 + 1),
+                            lobes: Vec::new(),
+                        });
+                        plan.groups.len() - 1
+                    }
                 };
-                lobe_curves.push((sc, ex));
-                plan.lobe_of[k][s] = Some(plan.lobes.len());
-                plan.lobes.push(PlanLobe {
-                    a_col: (k * 3 + s) * 2,
-                    exp,
-                    channels: 1 << k,
-                    zero_scale: sc.iter().all(|&v| v == 0.0),
+                let lobes = &mut plan.groups[g].lobes;
+                let same = lobes.iter().position(|l| {
+                    let (lk, ls) = (
+                        l.channels.trailing_zeros() as usize,
+                        l.slot[l.channels.trailing_zeros() as usize],
+                    );
+                    curve(ctrl, lk, ls, 0) == sc && l.channels & (1 << k) == 0
                 });
+                match same {
+                    Some(l) => {
+                        lobes[l].channels |= 1 << k;
+                        lobes[l].slot[k] = s;
+                    }
+                    None => {
+                        let mut slot = [0; 3];
+                        slot[k] = s;
+                        lobes.push(PlanLobe {
+                            a_col: (k * 3 + s) * 2,
+                            channels: 1 << k,
+                            slot,
+                            zero_scale: sc.iter().all(|&v| v == 0.0),
+                        });
+                    }
+                }
             }
         }
         plan
+    }
+
+    /// The coefficient columns the plan reads.
+    pub fn columns(&self) -> Vec<usize> {
+        let mut cols = Vec::new();
+        for g in &self.groups {
+            cols.extend(g.exp_col);
+            cols.extend(g.lobes.iter().map(|l| l.a_col));
+        }
+        cols
     }
 }
 
