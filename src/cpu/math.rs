@@ -100,7 +100,7 @@ const EXPM1_SMALL: f32 = 0.34;
 pub fn expm1<S: Simd>(s: S, y: S::f32s) -> S::f32s {
     let abs = s.and_f32s(y, s.transmute_f32s_u32s(s.splat_u32s(0x7FFF_FFFF)));
     let big = s.greater_than_or_equal_f32s(abs, s.splat_f32s(EXPM1_SMALL));
-    if s.first_true_m32s(big) >= S::F32_LANES {
+    if !super::pair::any(s, big) {
         return s.mul_add_f32s(s.mul_f32s(y, y), horner(s, y, &EXPM1_Q), y);
     }
     expm1_reduced(s, y)

@@ -72,6 +72,19 @@ pub struct Geo<S: Simd> {
     pub basis: [S::f32s; N_CTRL_POINTS],
 }
 
+/// Whether any lane of `m` is set. pulp's `first_true_m32s` walks the lanes one by one
+/// where masks are vectors (AVX2, NEON); AVX2 has one instruction for it.
+#[inline(always)]
+pub fn any<S: Simd>(s: S, m: S::m32s) -> bool {
+    #[cfg(target_arch = "x86_64")]
+    if let Some(v3) = (&s as &dyn std::any::Any).downcast_ref::<pulp::x86::V3>() {
+        let bits: S::u32s = s.select_u32s(m, s.splat_u32s(!0), s.splat_u32s(0));
+        let v: std::arch::x86_64::__m256 = bytemuck::cast(bits);
+        return v3.avx._mm256_movemask_ps(v) != 0;
+    }
+    s.first_true_m32s(m) < S::F32_LANES
+}
+
 #[inline(always)]
 fn dot3<S: Simd>(s: S, a: &[S::f32s; 3], b: &[S::f32s; 3]) -> S::f32s {
     s.mul_add_f32s(
@@ -207,7 +220,7 @@ pub fn geo<S: Simd>(s: S, cols: &Cols<'_, S>, setup: &Setup, p: &Px, b: usize) -
     let c = dot3(s, &n, &w);
     let zero = s.splat_f32s(0.0);
     let up = s.greater_than_f32s(c, zero);
-    if s.first_true_m32s(up) >= S::F32_LANES {
+    if !any(s, up) {
         return None;
     }
     let c = s.select_f32s(up, c, zero);
@@ -285,7 +298,7 @@ pub fn coef<S: Simd>(
 #[inline(always)]
 pub fn underflows<S: Simd>(s: S, t: S::f32s, up: S::m32s) -> bool {
     let live = s.and_m32s(s.greater_than_f32s(t, s.splat_f32s(-127.0)), up);
-    s.first_true_m32s(live) >= S::F32_LANES
+    !any(s, live)
 }
 
 /// Adds `v` to the channels whose bit is set.
