@@ -5,7 +5,7 @@
 use pulp::{Simd, WithSimd};
 
 use super::forward::GROUP_TEXELS;
-use super::math::{exp2, expm1};
+use super::math::{exp2, exp2m1};
 use super::pair::{Cols, DPOW_MAX, Setup, coef, geo, underflows};
 use super::table::{Px, TexelTable};
 use crate::material::idx;
@@ -103,8 +103,10 @@ impl WithSimd for Backward<'_> {
                                 }
                                 continue;
                             }
-                            let a = coef(s, &cols, self.setup, &g, b, lobe.a_col);
-                            let em1 = expm1(s, xb.map_or(a, |xb| s.mul_f32s(a, xb)));
+                            // the scale columns hold a log2(e)
+                            let a2 = coef(s, &cols, self.setup, &g, b, lobe.a_col);
+                            let em1 = exp2m1(s, xb.map_or(a2, |xb| s.mul_f32s(a2, xb)));
+                            let a = s.mul_f32s(a2, s.splat_f32s(std::f32::consts::LN_2));
                             let e1 = s.add_f32s(em1, one);
                             // E x^m1, E m0 x^m1 and E m0 m1 x^(m1 - 1)
                             let t1 = xb.map_or(e1, |xb| s.mul_f32s(e1, xb));

@@ -3,7 +3,7 @@
 
 use pulp::{Simd, WithSimd};
 
-use super::math::{exp2, expm1};
+use super::math::{exp2, exp2m1};
 use super::pair::{Cols, Setup, add_channels, coef, geo, underflows};
 use super::table::{Px, TexelTable};
 
@@ -57,9 +57,10 @@ impl WithSimd for Forward<'_> {
                             if lobe.zero_scale {
                                 continue;
                             }
-                            let a = coef(s, &cols, self.setup, &g, b, lobe.a_col);
-                            let y = xb.map_or(a, |xb| s.mul_f32s(a, xb));
-                            add_channels(s, lobe.channels, expm1(s, y), &mut f);
+                            // a log2(e): the scale columns are stored so
+                            let a2 = coef(s, &cols, self.setup, &g, b, lobe.a_col);
+                            let u = xb.map_or(a2, |xb| s.mul_f32s(a2, xb));
+                            add_channels(s, lobe.channels, exp2m1(s, u), &mut f);
                         }
                     }
                     for k in 0..3 {

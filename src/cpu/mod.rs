@@ -176,7 +176,7 @@ impl FastCpu {
             .filter(|&(k, s)| has_scale(ctrl, k, s) && !depends_on_x(ctrl, k, s))
             .collect();
         let table = TexelTable::new(prep, &prep.lit, &plan.columns(), &consts);
-        let ctrl32 = ctrl.map(|v| v as f32);
+        let ctrl32 = kernel_ctrl(ctrl);
         let setup = Setup {
             plan: &plan,
             ctrl: &ctrl32,
@@ -209,7 +209,7 @@ impl FastCpu {
         let plan = LobePlan::new(ctrl, |_, _| true);
         let all: Vec<usize> = (0..prep.texels.len()).collect();
         let table = TexelTable::new(prep, &all, &plan.columns(), &[]);
-        let ctrl32 = ctrl.map(|v| v as f32);
+        let ctrl32 = kernel_ctrl(ctrl);
         let setup = Setup {
             plan: &plan,
             ctrl: &ctrl32,
@@ -300,6 +300,14 @@ impl FastCpu {
             d_ctrl: d_ctrl.map(|x| x as f32),
         }
     }
+}
+
+/// The control points as the kernels read them: f32, scales times log2(e) (see
+/// [`table::column_scale`]).
+fn kernel_ctrl(ctrl: &[f64; N_PARAMS]) -> [f32; N_PARAMS] {
+    std::array::from_fn(|i| {
+        (ctrl[i] * table::column_scale(i / crate::spline::N_CTRL_POINTS)) as f32
+    })
 }
 
 impl Backend for FastCpu {

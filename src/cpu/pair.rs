@@ -48,6 +48,7 @@ impl<'a, S: Simd> Cols<'a, S> {
 /// the camera.
 pub struct Setup<'a> {
     pub plan: &'a LobePlan,
+    /// The control points, scales times log2(e) (see [`super::table::column_scale`]).
     pub ctrl: &'a [f32; crate::N_PARAMS],
     pub perspective: bool,
 }

@@ -127,6 +127,16 @@ pub fn depends_on_x(ctrl: &[f64; N_PARAMS], k: usize, s: usize) -> bool {
     has_scale(ctrl, k, s) && curve(ctrl, k, s, 1).iter().any(|&v| v != 0.0)
 }
 
+/// What the kernels' copy of coefficient column `col` is multiplied by: log2(e) for the
+/// scales (t = 0), so that exp(a x^b) - 1 is 2^(a log2(e) x^b) - 1, and 1 for the exponents.
+pub fn column_scale(col: usize) -> f64 {
+    if col.is_multiple_of(2) {
+        std::f64::consts::LOG2_E
+    } else {
+        1.0
+    }
+}
+
 /// Texels as f32 columns, tile-ordered, padded with inert texels (w = 0, so n.w = 0 and
 /// they are never lit from above a pixel's horizon) to a multiple of [`PAD`].
 #[derive(Clone, Debug, Default)]
@@ -146,7 +156,7 @@ pub struct TexelTable {
     /// Orthographic: the constant lobes' share of f per channel (exp(m0) - 1 summed).
     pub fconst: [Vec<f32>; 3],
     /// Orthographic: the coefficient columns the plan reads (indexed by column; empty
-    /// for columns no lobe needs).
+    /// for columns no lobe needs), each times [`column_scale`].
     pub coef: Vec<Vec<f32>>,
 }
 
@@ -179,7 +189,7 @@ impl TexelTable {
         let mut coef = vec![Vec::new(); N_COEF_VALUES];
         if ortho {
             for &c in cols {
-                coef[c] = col(&|ti| t[ti].coef[c] as f32);
+                coef[c] = col(&|ti| (t[ti].coef[c] * column_scale(c)) as f32);
             }
         }
         let fconst = std::array::from_fn(|k| {
