@@ -135,15 +135,17 @@ impl WithSimd for Backward<'_> {
                     let mut along_w = zero;
                     let mut along_h = zero;
                     for k in 0..3 {
-                        acc[k] = s.mul_add_f32s(s.mul_f32s(s.splat_f32s(gp[k]), g.c), f[k], acc[k]);
-                        along_w = s.mul_add_f32s(gl[k], f[k], along_w);
-                        along_h = s.mul_add_f32s(gl[k], dx[k], along_h);
+                        acc[k] =
+                            s.mul_add_e_f32s(s.mul_f32s(s.splat_f32s(gp[k]), g.c), f[k], acc[k]);
+                        along_w = s.mul_add_e_f32s(gl[k], f[k], along_w);
+                        along_h = s.mul_add_e_f32s(gl[k], dx[k], along_h);
                     }
                     let along_w = s.select_f32s(g.up, along_w, zero);
                     let ch = s.mul_f32s(g.c, along_h);
                     let w = [cols.w[0][b], cols.w[1][b], cols.w[2][b]];
                     for a in 0..3 {
-                        dn[a] = s.mul_add_f32s(along_w, w[a], s.mul_add_f32s(ch, g.h[a], dn[a]));
+                        dn[a] =
+                            s.mul_add_e_f32s(along_w, w[a], s.mul_add_e_f32s(ch, g.h[a], dn[a]));
                     }
                 }
                 for a in 0..3 {
@@ -200,7 +202,7 @@ fn add_share<S: Simd>(
 ) {
     if perspective {
         for j in 0..N_CTRL_POINTS {
-            acc[j] = s.mul_add_f32s(v, basis[j], acc[j]);
+            acc[j] = s.mul_add_e_f32s(v, basis[j], acc[j]);
         }
     } else {
         acc[0] = s.add_f32s(acc[0], v);

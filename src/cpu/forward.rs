@@ -64,7 +64,7 @@ impl WithSimd for Forward<'_> {
                         }
                     }
                     for k in 0..3 {
-                        acc[k] = s.mul_add_f32s(s.mul_f32s(f[k], g.c), cols.ld[k][b], acc[k]);
+                        acc[k] = s.mul_add_e_f32s(s.mul_f32s(f[k], g.c), cols.ld[k][b], acc[k]);
                     }
                 }
                 for k in 0..3 {

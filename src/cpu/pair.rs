@@ -88,10 +88,10 @@ pub fn any<S: Simd>(s: S, m: S::m32s) -> bool {
 
 #[inline(always)]
 fn dot3<S: Simd>(s: S, a: &[S::f32s; 3], b: &[S::f32s; 3]) -> S::f32s {
-    s.mul_add_f32s(
+    s.mul_add_e_f32s(
         a[0],
         b[0],
-        s.mul_add_f32s(a[1], b[1], s.mul_f32s(a[2], b[2])),
+        s.mul_add_e_f32s(a[1], b[1], s.mul_f32s(a[2], b[2])),
     )
 }
 
@@ -121,7 +121,7 @@ fn atan2_pos<S: Simd>(s: S, y: S::f32s, x: S::f32s) -> S::f32s {
     let t2 = s.mul_f32s(t, t);
     let mut p = s.splat_f32s(ATAN_P[7]);
     for i in (0..7).rev() {
-        p = s.mul_add_f32s(p, t2, s.splat_f32s(ATAN_P[i]));
+        p = s.mul_add_e_f32s(p, t2, s.splat_f32s(ATAN_P[i]));
     }
     let a = s.mul_f32s(p, t);
     s.select_f32s(
@@ -162,7 +162,7 @@ fn basis<S: Simd>(s: S, theta_d: S::f32s) -> [S::f32s; N_CTRL_POINTS] {
         s0,
         s.mul_f32s(
             s.mul_f32s(half, tau),
-            s.mul_add_f32s(s.splat_f32s(-3.0), tau, s.splat_f32s(4.0)),
+            s.mul_add_e_f32s(s.splat_f32s(-3.0), tau, s.splat_f32s(4.0)),
         ),
         s.select_f32s(
             s1,
@@ -200,7 +200,7 @@ fn basis<S: Simd>(s: S, theta_d: S::f32s) -> [S::f32s; N_CTRL_POINTS] {
         s3,
         s.mul_f32s(
             s.mul_f32s(half, sigma),
-            s.mul_add_f32s(s.splat_f32s(-3.0), sigma, s.splat_f32s(4.0)),
+            s.mul_add_e_f32s(s.splat_f32s(-3.0), sigma, s.splat_f32s(4.0)),
         ),
         s.select_f32s(
             s2,
@@ -245,7 +245,7 @@ pub fn geo<S: Simd>(s: S, cols: &Cols<'_, S>, setup: &Setup, p: &Px, b: usize) -
     };
     // 1 - x = (|h - n|^2 - (|n|^2 - 1)) / 2 for unit h: no cancellation near x = 1
     let hn = [0, 1, 2].map(|a| s.sub_f32s(h[a], n[a]));
-    let d = s.mul_add_f32s(
+    let d = s.mul_add_e_f32s(
         s.sub_f32s(dot3(s, &hn, &hn), s.splat_f32s(p.nn_m1)),
         s.splat_f32s(0.5),
         d_pad,
@@ -285,7 +285,7 @@ pub fn coef<S: Simd>(
         let c = &setup.ctrl[col * N_CTRL_POINTS..(col + 1) * N_CTRL_POINTS];
         let mut v = s.mul_f32s(g.basis[0], s.splat_f32s(c[0]));
         for j in 1..N_CTRL_POINTS {
-            v = s.mul_add_f32s(g.basis[j], s.splat_f32s(c[j]), v);
+            v = s.mul_add_e_f32s(g.basis[j], s.splat_f32s(c[j]), v);
         }
         v
     } else {
