@@ -105,7 +105,12 @@ impl WithSimd for Backward<'_> {
                             }
                             // the scale columns hold a log2(e)
                             let a2 = coef(s, &cols, self.setup, &g, b, lobe.a_col);
-                            let em1 = exp2m1(s, xb.map_or(a2, |xb| s.mul_f32s(a2, xb)));
+                            let em1 = match xb {
+                                Some(xb) => exp2m1(s, s.mul_f32s(a2, xb)),
+                                // a constant lobe: exp(m0) - 1 depends on the texel alone
+                                None if !perspective => cols.em1[lobe.a_col][b],
+                                None => exp2m1(s, a2),
+                            };
                             let a = s.mul_f32s(a2, s.splat_f32s(std::f32::consts::LN_2));
                             let e1 = s.add_f32s(em1, one);
                             // E x^m1, E m0 x^m1 and E m0 m1 x^(m1 - 1)

@@ -175,7 +175,7 @@ impl FastCpu {
             .flat_map(|k| (0..3).map(move |s| (k, s)))
             .filter(|&(k, s)| has_scale(ctrl, k, s) && !depends_on_x(ctrl, k, s))
             .collect();
-        let table = TexelTable::new(prep, &prep.lit, &plan.columns(), &consts);
+        let table = TexelTable::new(prep, &prep.lit, &plan.columns(), &[], &consts);
         let ctrl32 = kernel_ctrl(ctrl);
         let setup = Setup {
             plan: &plan,
@@ -208,7 +208,7 @@ impl FastCpu {
         // every lobe: a lobe whose scale is 0 still has a gradient for its scale
         let plan = LobePlan::new(ctrl, |_, _| true);
         let all: Vec<usize> = (0..prep.texels.len()).collect();
-        let table = TexelTable::new(prep, &all, &plan.columns(), &[]);
+        let table = TexelTable::new(prep, &all, &plan.columns(), &plan.const_columns(), &[]);
         let ctrl32 = kernel_ctrl(ctrl);
         let setup = Setup {
             plan: &plan,

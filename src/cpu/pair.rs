@@ -25,6 +25,7 @@ pub struct Cols<'a, S: Simd> {
     pub ld: [&'a [S::f32s]; 3],
     pub fconst: [&'a [S::f32s]; 3],
     pub coef: Vec<&'a [S::f32s]>,
+    pub em1: Vec<&'a [S::f32s]>,
 }
 
 fn blocks<S: Simd>(v: &[f32]) -> &[S::f32s] {
@@ -40,6 +41,7 @@ impl<'a, S: Simd> Cols<'a, S> {
             ld: t.ld.each_ref().map(|v| blocks::<S>(v)),
             fconst: t.fconst.each_ref().map(|v| blocks::<S>(v)),
             coef: t.coef.iter().map(|v| blocks::<S>(v)).collect(),
+            em1: t.em1.iter().map(|v| blocks::<S>(v)).collect(),
         }
     }
 }

@@ -106,6 +106,14 @@ impl LobePlan {
         plan
     }
 
+    /// The scale columns of the lobes whose exponent is 0 everywhere.
+    pub fn const_columns(&self) -> Vec<usize> {
+        let consts = self.groups.iter().filter(|g| g.exp_col.is_none());
+        consts
+            .flat_map(|g| g.lobes.iter().map(|l| l.a_col))
+            .collect()
+    }
+
     /// The coefficient columns the plan reads.
     pub fn columns(&self) -> Vec<usize> {
         let mut cols = Vec::new();
@@ -158,15 +166,22 @@ pub struct TexelTable {
     /// Orthographic: the coefficient columns the plan reads (indexed by column; empty
     /// for columns no lobe needs), each times [`column_scale`].
     pub coef: Vec<Vec<f32>>,
+    /// Orthographic: exp(m0) - 1 per texel for the scale columns of lobes whose exponent is
+    /// 0 everywhere (indexed by the scale's column; empty for others): their value does not
+    /// depend on the pixel.
+    pub em1: Vec<Vec<f32>>,
 }
 
 impl TexelTable {
     /// The texels `which` (positions in `prep.texels`), tile-ordered. `cols` are the
-    /// coefficient columns the kernels will read (orthographic cameras only).
+    /// coefficient columns the kernels will read, `const_cols` the scale columns whose
+    /// exp(m0) - 1 they will read, and `const_lobes` the (k, s) summed into `fconst`
+    /// (orthographic cameras only).
     pub fn new(
         prep: &Prepared,
         which: &[usize],
         cols: &[usize],
+        const_cols: &[usize],
         const_lobes: &[(usize, usize)],
     ) -> Self {
         let wl = prep.env_width;
@@ -187,9 +202,13 @@ impl TexelTable {
         };
         let t = &prep.texels;
         let mut coef = vec![Vec::new(); N_COEF_VALUES];
+        let mut em1 = vec![Vec::new(); N_COEF_VALUES];
         if ortho {
             for &c in cols {
                 coef[c] = col(&|ti| (t[ti].coef[c] * column_scale(c)) as f32);
+            }
+            for &c in const_cols {
+                em1[c] = col(&|ti| t[ti].coef[c].exp_m1() as f32);
             }
         }
         let fconst = std::array::from_fn(|k| {
@@ -220,6 +239,7 @@ impl TexelTable {
             ld: std::array::from_fn(|k| col(&|ti| t[ti].ld[k] as f32)),
             fconst,
             coef,
+            em1,
             src,
         }
     }
