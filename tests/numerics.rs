@@ -68,6 +68,40 @@ fn extreme_valid_inputs_give_finite_outputs_cpu() {
 }
 
 #[test]
+fn extreme_valid_inputs_give_finite_outputs_fast_cpu() {
+    use matedit::cpu::{FastCpu, SimdLevel};
+    for cpu in SimdLevel::ALL.into_iter().filter_map(FastCpu::with_level) {
+        let level = cpu.level().name();
+        for (i, s) in extreme_scenes().iter().enumerate() {
+            let prep = Prepared::new(s);
+            let img = flat32(&cpu.forward(&prep));
+            assert!(all_finite(&img), "{level} scene {i}: image not finite");
+            let want = flat64(&reference::forward(&prep));
+            let scale = want.iter().fold(0.0f64, |a, b| a.max(b.abs()));
+            assert_close(
+                &format!("{level} scene {i} image"),
+                &img,
+                &want,
+                1e-4 * scale,
+                0.0,
+            );
+            let g = cpu.backward(&prep, &[[1.0; 3]; 6]);
+            assert!(
+                all_finite(&flat32(&g.d_env)),
+                "{level} scene {i}: dL not finite"
+            );
+            assert!(
+                all_finite(&flat32(&g.d_normals)),
+                "{level} scene {i}: dn not finite"
+            );
+            let dc: Vec<f64> = g.d_ctrl.iter().map(|&v| v as f64).collect();
+            assert!(all_finite(&dc), "{level} scene {i}: dctrl not finite");
+            assert_eq!(img[12..15], [0.0; 3], "background pixel renders 0");
+        }
+    }
+}
+
+#[test]
 fn extreme_valid_inputs_give_finite_outputs_gpu() {
     let Some(g) = gpu("extreme_valid_inputs_give_finite_outputs_gpu") else {
         return;
@@ -151,4 +185,24 @@ fn overflowing_outputs_are_errors_not_inf() {
         pixels: vec![[1.0; 3]; 16],
     }];
     assert!(renderer.backward(&batch, &up).is_ok());
+}
+
+#[test]
+fn small_scale_lobes_keep_their_digits_on_the_fast_cpu() {
+    use matedit::cpu::{FastCpu, SimdLevel};
+    let mut rng = Rng::new(3);
+    for camera in [
+        Camera::Orthographic,
+        Camera::Perspective { fov_y_deg: 60.0 },
+    ] {
+        let mut s = common::random_scene(&mut rng, 8, 8, 16, 32, Convention::Equirect, camera);
+        s.material = Material::constant("faint", [(1e-6, 0.0), (3e-6, 4.0), (0.0, 0.0)]).unwrap();
+        let prep = Prepared::new(&s);
+        let want = flat64(&reference::forward(&prep));
+        for cpu in SimdLevel::ALL.into_iter().filter_map(FastCpu::with_level) {
+            let got = flat32(&cpu.forward(&prep));
+            let what = format!("faint image {} {camera:?}", cpu.level().name());
+            assert_close(&what, &got, &want, 1e-30, 1e-5);
+        }
+    }
 }
