@@ -8,17 +8,16 @@
 
 mod common;
 
-use common::{Rng, assert_close, flat32, flat64, random_material, random_scene};
+use common::{
+    Rng, Truth, assert_close, flat32, flat64, max_abs, random_material, random_scene, scenes,
+    upstream_for,
+};
 use matedit::cpu::{FastCpu, SimdLevel};
 use matedit::prepare::Prepared;
-use matedit::{Batch, Camera, Convention, EnvMap, Image, Material, NormalMap, Scene, reference};
+use matedit::{Batch, Camera, Convention, EnvMap, Material, NormalMap, Scene, reference};
 
 const IMAGE_TOL: f64 = 1e-5;
 const GRAD_TOL: f64 = 1e-4;
-
-fn max_abs(v: &[f64]) -> f64 {
-    v.iter().fold(0.0f64, |a, b| a.max(b.abs()))
-}
 
 /// Every level this CPU has, widest first (scalar is always there).
 fn levels() -> Vec<FastCpu> {
@@ -32,117 +31,43 @@ fn levels() -> Vec<FastCpu> {
     found
 }
 
-fn upstream(w: usize, h: usize, seed: u64) -> Vec<[f32; 3]> {
-    let mut rng = Rng::new(seed);
-    (0..w * h)
-        .map(|_| [0; 3].map(|_: i32| rng.uniform(-1.0, 1.0) as f32))
-        .collect()
-}
-
 /// Forward and backward of every scene of `batch` at every level against the reference.
 fn compare(test: &str, batch: &Batch) {
     compare_tol(test, batch, IMAGE_TOL, GRAD_TOL);
 }
 
 fn compare_tol(test: &str, batch: &Batch, image_tol: f64, grad_tol: f64) {
+    let ups = upstream_for(batch, 99);
     for (b, scene) in batch.scenes().iter().enumerate() {
         let prep = Prepared::new(scene);
-        let want = flat64(&reference::forward(&prep));
-        assert!(max_abs(&want) > 0.0, "{test}: the image is black");
-        let up = upstream(prep.width, prep.height, 99 + b as u64);
-        let gu: Vec<[f64; 3]> = up.iter().map(|p| p.map(f64::from)).collect();
-        let r = reference::backward(&prep, &gu);
+        let up = &ups[b].pixels;
+        let truth = Truth::new(&prep, up);
         for cpu in levels() {
-            let level = cpu.level().name();
-            let got = flat32(&cpu.forward(&prep));
-            assert_close(
-                &format!("{test} scene {b} {level} image"),
-                &got,
-                &want,
-                image_tol * max_abs(&want),
-                0.0,
-            );
-            let g = cpu.backward(&prep, &up);
-            for (name, got, want) in [
-                ("dL", flat32(&g.d_env), flat64(&r.d_env)),
-                ("dn", flat32(&g.d_normals), flat64(&r.d_normals)),
-                (
-                    "dctrl",
-                    g.d_ctrl.iter().map(|&v| v as f64).collect(),
-                    r.d_ctrl.to_vec(),
-                ),
-            ] {
-                assert!(max_abs(&want) > 0.0, "{test}: {name} is all zero");
-                assert_close(
-                    &format!("{test} scene {b} {level} {name}"),
-                    &got,
-                    &want,
-                    grad_tol * max_abs(&want),
-                    0.0,
-                );
-            }
+            let what = format!("{test} scene {b} {}", cpu.level().name());
+            let (image, grads) = (cpu.forward(&prep), cpu.backward(&prep, up));
+            truth.check(&what, &image, &grads, image_tol, grad_tol);
         }
     }
 }
 
 #[test]
 fn forward_backward_64x128_env_equirect() {
-    let mut rng = Rng::new(11);
-    let s = random_scene(
-        &mut rng,
-        12,
-        10,
-        64,
-        128,
-        Convention::Equirect,
-        Camera::Orthographic,
-    );
-    compare("64x128 equirect", &Batch::single(s).unwrap());
+    compare("64x128 equirect", &scenes::equirect_64x128());
 }
 
 #[test]
 fn forward_backward_non_square_paper() {
-    let mut rng = Rng::new(12);
-    let s = random_scene(
-        &mut rng,
-        13,
-        7,
-        16,
-        32,
-        Convention::Paper,
-        Camera::Orthographic,
-    );
-    compare("13x7 paper", &Batch::single(s).unwrap());
+    compare("13x7 paper", &scenes::non_square_paper());
 }
 
 #[test]
 fn forward_backward_batch_of_3_through_the_renderer() {
-    let mut rng = Rng::new(13);
-    let scenes: Vec<Scene> = (0..3)
-        .map(|_| {
-            random_scene(
-                &mut rng,
-                9,
-                11,
-                16,
-                32,
-                Convention::Equirect,
-                Camera::Orthographic,
-            )
-        })
-        .collect();
-    let batch = Batch::new(scenes).unwrap();
+    let batch = scenes::batch_of_3();
     compare("batch of 3", &batch);
     // the same through the public API, one call for the batch
     let renderer = matedit::Renderer::with_backend(Box::new(FastCpu::best()));
     let images = renderer.render(&batch).unwrap();
-    let ups: Vec<Image> = (0..3)
-        .map(|b| Image {
-            width: 9,
-            height: 11,
-            pixels: upstream(9, 11, 99 + b),
-        })
-        .collect();
+    let ups = upstream_for(&batch, 99);
     let grads = renderer.backward(&batch, &ups).unwrap();
     for (b, scene) in batch.scenes().iter().enumerate() {
         let prep = Prepared::new(scene);
@@ -156,8 +81,7 @@ fn forward_backward_batch_of_3_through_the_renderer() {
             0.0,
         );
         let gu: Vec<[f64; 3]> = ups[b].pixels.iter().map(|p| p.map(f64::from)).collect();
-        let r = reference::backward(&prep, &gu);
-        let want = flat64(&r.d_env);
+        let want = flat64(&reference::backward(&prep, &gu).d_env);
         let tol = GRAD_TOL * max_abs(&want);
         assert_close("renderer dL", &flat32(&grads[b].d_env), &want, tol, 0.0);
     }
@@ -165,18 +89,8 @@ fn forward_backward_batch_of_3_through_the_renderer() {
 
 #[test]
 fn forward_backward_perspective_both_conventions() {
-    for (seed, conv) in [(14, Convention::Equirect), (15, Convention::Paper)] {
-        let mut rng = Rng::new(seed);
-        let s = random_scene(
-            &mut rng,
-            10,
-            8,
-            16,
-            32,
-            conv,
-            Camera::Perspective { fov_y_deg: 50.0 },
-        );
-        compare(&format!("perspective {conv:?}"), &Batch::single(s).unwrap());
+    for (conv, batch) in scenes::perspective() {
+        compare(&format!("perspective {conv:?}"), &batch);
     }
 }
 
@@ -301,8 +215,9 @@ fn deterministic_across_threads_and_runs() {
         Convention::Equirect,
         Camera::Perspective { fov_y_deg: 45.0 },
     );
-    let prep = Prepared::new(&s);
-    let up = upstream(48, 50, 5);
+    let batch = Batch::single(s).unwrap();
+    let up = upstream_for(&batch, 5).remove(0).pixels;
+    let prep = Prepared::new(&batch.scenes()[0]);
     let cpu = FastCpu::best();
     let run = |threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new()

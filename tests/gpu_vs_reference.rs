@@ -9,46 +9,11 @@
 
 mod common;
 
-use common::{Rng, assert_close, flat32, flat64, gpu, random_scene};
+use common::{Rng, Truth, assert_close, flat32, gpu, random_scene, scenes, upstream_for};
 use matedit::prepare::Prepared;
-use matedit::{
-    Backend, Batch, Camera, Convention, EnvMap, Image, Material, NormalMap, Scene, reference,
-};
+use matedit::{Backend, Batch, Camera, Convention, EnvMap, Material, NormalMap, Scene, reference};
 
 const TOL: f64 = 1e-4;
-
-fn max_abs(v: &[f64]) -> f64 {
-    v.iter().fold(0.0f64, |a, b| a.max(b.abs()))
-}
-
-fn upstream_for(batch: &Batch, seed: u64) -> Vec<Image> {
-    let mut rng = Rng::new(seed);
-    let (w, h) = batch.image_size();
-    batch
-        .scenes()
-        .iter()
-        .map(|_| Image {
-            width: w,
-            height: h,
-            pixels: (0..w * h)
-                .map(|_| [0; 3].map(|_: i32| rng.uniform(-1.0, 1.0) as f32))
-                .collect(),
-        })
-        .collect()
-}
-
-/// Prints the largest error as a fraction of the largest value (seen with --nocapture).
-fn report(test: &str, b: usize, name: &str, got: &[f64], want: &[f64]) {
-    let err = got
-        .iter()
-        .zip(want)
-        .fold(0.0f64, |a, (g, w)| a.max((g - w).abs()));
-    eprintln!(
-        "{test} scene {b} {name}: max |gpu - reference| = {:.2e} of max {:.3e}",
-        err / max_abs(want),
-        max_abs(want)
-    );
-}
 
 /// Forward and backward of `batch` on the GPU against the CPU reference.
 fn compare(test: &str, batch: &Batch) {
@@ -61,106 +26,31 @@ fn compare_on(g: &matedit::gpu::GpuRenderer, test: &str, batch: &Batch) {
     let up = upstream_for(batch, 99);
     let grads = g.backward(batch, &up).expect("gpu backward");
     for (b, scene) in batch.scenes().iter().enumerate() {
-        let prep = Prepared::new(scene);
-        let want = flat64(&reference::forward(&prep));
-        let got = flat32(&images[b].pixels);
-        assert!(max_abs(&want) > 0.0, "{test}: the image is black");
-        report(test, b, "image", &got, &want);
-        assert_close(
-            &format!("{test} scene {b} image"),
-            &got,
-            &want,
-            TOL * max_abs(&want),
-            0.0,
-        );
-
-        let gu: Vec<[f64; 3]> = up[b].pixels.iter().map(|p| p.map(f64::from)).collect();
-        let r = reference::backward(&prep, &gu);
-        for (name, got, want) in [
-            ("dL", flat32(&grads[b].d_env), flat64(&r.d_env)),
-            ("dn", flat32(&grads[b].d_normals), flat64(&r.d_normals)),
-            (
-                "dctrl",
-                grads[b].d_ctrl.iter().map(|&v| v as f64).collect(),
-                r.d_ctrl.to_vec(),
-            ),
-        ] {
-            assert!(max_abs(&want) > 0.0, "{test}: {name} is all zero");
-            report(test, b, name, &got, &want);
-            assert_close(
-                &format!("{test} scene {b} {name}"),
-                &got,
-                &want,
-                TOL * max_abs(&want),
-                0.0,
-            );
-        }
+        let truth = Truth::new(&Prepared::new(scene), &up[b].pixels);
+        let what = format!("{test} scene {b}");
+        truth.check(&what, &images[b].pixels, &grads[b], TOL, TOL);
     }
 }
 
 #[test]
 fn forward_backward_64x128_env_equirect() {
-    let mut rng = Rng::new(11);
-    let s = random_scene(
-        &mut rng,
-        12,
-        10,
-        64,
-        128,
-        Convention::Equirect,
-        Camera::Orthographic,
-    );
-    compare("64x128 equirect", &Batch::single(s).unwrap());
+    compare("64x128 equirect", &scenes::equirect_64x128());
 }
 
 #[test]
 fn forward_backward_non_square_paper() {
-    let mut rng = Rng::new(12);
-    let s = random_scene(
-        &mut rng,
-        13,
-        7,
-        16,
-        32,
-        Convention::Paper,
-        Camera::Orthographic,
-    );
-    compare("13x7 paper", &Batch::single(s).unwrap());
+    compare("13x7 paper", &scenes::non_square_paper());
 }
 
 #[test]
 fn forward_backward_batch_of_3() {
-    let mut rng = Rng::new(13);
-    let scenes = (0..3)
-        .map(|_| {
-            random_scene(
-                &mut rng,
-                9,
-                11,
-                16,
-                32,
-                Convention::Equirect,
-                Camera::Orthographic,
-            )
-        })
-        .collect();
-    compare("batch of 3", &Batch::new(scenes).unwrap());
+    compare("batch of 3", &scenes::batch_of_3());
 }
 
 #[test]
 fn forward_backward_perspective_both_conventions() {
-    for (seed, conv) in [(14, Convention::Equirect), (15, Convention::Paper)] {
-        let mut rng = Rng::new(seed);
-        let s = random_scene(
-            &mut rng,
-            10,
-            8,
-            16,
-            32,
-            conv,
-            Camera::Perspective { fov_y_deg: 60.0 },
-        );
-        compare(&format!("perspective {conv:?}"), &Batch::single(s).unwrap());
+    for (conv, batch) in scenes::perspective() {
+        compare(&format!("perspective {conv:?}"), &batch);
     }
 }
 

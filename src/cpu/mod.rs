@@ -176,13 +176,8 @@ impl FastCpu {
             .filter(|&(k, s)| has_scale(ctrl, k, s) && !depends_on_x(ctrl, k, s))
             .collect();
         let table = TexelTable::new(prep, &prep.lit, &plan.columns(), &[], &consts);
-        let ctrl32 = kernel_ctrl(ctrl);
-        let setup = Setup {
-            plan: &plan,
-            ctrl: &ctrl32,
-            perspective,
-        };
-        let px = table::pixels(prep);
+        let inputs = PassInputs::new(prep, plan);
+        let (setup, px) = (inputs.setup(), &inputs.px);
         let mut sums = vec![[0.0f64; 3]; px.len()];
         px.par_chunks(FORWARD_CHUNK)
             .zip(sums.par_chunks_mut(FORWARD_CHUNK))
@@ -209,13 +204,8 @@ impl FastCpu {
         let plan = LobePlan::new(ctrl, |_, _| true);
         let all: Vec<usize> = (0..prep.texels.len()).collect();
         let table = TexelTable::new(prep, &all, &plan.columns(), &plan.const_columns(), &[]);
-        let ctrl32 = kernel_ctrl(ctrl);
-        let setup = Setup {
-            plan: &plan,
-            ctrl: &ctrl32,
-            perspective,
-        };
-        let px = table::pixels(prep);
+        let inputs = PassInputs::new(prep, plan);
+        let (setup, px) = (inputs.setup(), &inputs.px);
         let gp: Vec<[f32; 3]> = prep.pixels.iter().map(|p| g[p.index]).collect();
         let n_tex = table.len;
         // the number of chunks depends on the problem size only, never on the threads
@@ -298,6 +288,33 @@ impl FastCpu {
             d_env,
             d_normals,
             d_ctrl: d_ctrl.map(|x| x as f32),
+        }
+    }
+}
+
+/// What a pass reads besides the texel table.
+struct PassInputs {
+    plan: LobePlan,
+    ctrl: [f32; N_PARAMS],
+    perspective: bool,
+    px: Vec<table::Px>,
+}
+
+impl PassInputs {
+    fn new(prep: &Prepared, plan: LobePlan) -> Self {
+        PassInputs {
+            plan,
+            ctrl: kernel_ctrl(&prep.ctrl),
+            perspective: !prep.camera.is_orthographic(),
+            px: table::pixels(prep),
+        }
+    }
+
+    fn setup(&self) -> Setup<'_> {
+        Setup {
+            plan: &self.plan,
+            ctrl: &self.ctrl,
+            perspective: self.perspective,
         }
     }
 }

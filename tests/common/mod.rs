@@ -135,3 +135,143 @@ pub fn flat32(v: &[[f32; 3]]) -> Vec<f64> {
 pub fn flat64(v: &[[f64; 3]]) -> Vec<f64> {
     v.iter().flatten().copied().collect()
 }
+
+/// The largest |v|.
+pub fn max_abs(v: &[f64]) -> f64 {
+    v.iter().fold(0.0f64, |a, b| a.max(b.abs()))
+}
+
+/// A seeded upstream gradient in [-1, 1] for every scene of `batch`.
+pub fn upstream_for(batch: &matedit::Batch, seed: u64) -> Vec<matedit::Image> {
+    let mut rng = Rng::new(seed);
+    let (w, h) = batch.image_size();
+    batch
+        .scenes()
+        .iter()
+        .map(|_| matedit::Image {
+            width: w,
+            height: h,
+            pixels: (0..w * h)
+                .map(|_| [0; 3].map(|_: i32| rng.uniform(-1.0, 1.0) as f32))
+                .collect(),
+        })
+        .collect()
+}
+
+/// The seeded scenes every backend is compared with the reference on.
+pub mod scenes {
+    use super::{Rng, random_scene};
+    use matedit::{Batch, Camera, Convention};
+
+    /// 12 x 10 normals against a 64 x 128 equirect map.
+    pub fn equirect_64x128() -> Batch {
+        let mut rng = Rng::new(11);
+        let cam = Camera::Orthographic;
+        Batch::single(random_scene(
+            &mut rng,
+            12,
+            10,
+            64,
+            128,
+            Convention::Equirect,
+            cam,
+        ))
+        .unwrap()
+    }
+
+    /// A non-square 13 x 7 image, `paper` convention.
+    pub fn non_square_paper() -> Batch {
+        let mut rng = Rng::new(12);
+        let cam = Camera::Orthographic;
+        Batch::single(random_scene(
+            &mut rng,
+            13,
+            7,
+            16,
+            32,
+            Convention::Paper,
+            cam,
+        ))
+        .unwrap()
+    }
+
+    /// Three scenes in one batch.
+    pub fn batch_of_3() -> Batch {
+        let mut rng = Rng::new(13);
+        let cam = Camera::Orthographic;
+        let scenes = (0..3)
+            .map(|_| random_scene(&mut rng, 9, 11, 16, 32, Convention::Equirect, cam))
+            .collect();
+        Batch::new(scenes).unwrap()
+    }
+
+    /// A 60-degree perspective camera, both conventions.
+    pub fn perspective() -> Vec<(Convention, Batch)> {
+        [(14, Convention::Equirect), (15, Convention::Paper)]
+            .into_iter()
+            .map(|(seed, conv)| {
+                let mut rng = Rng::new(seed);
+                let cam = Camera::Perspective { fov_y_deg: 60.0 };
+                let s = random_scene(&mut rng, 10, 8, 16, 32, conv, cam);
+                (conv, Batch::single(s).unwrap())
+            })
+            .collect()
+    }
+}
+
+/// The f64 reference's image and gradients of one scene for upstream `up`.
+pub struct Truth {
+    pub image: Vec<f64>,
+    pub grads: matedit::reference::GradientsF64,
+}
+
+impl Truth {
+    pub fn new(prep: &matedit::prepare::Prepared, up: &[[f32; 3]]) -> Self {
+        let gu: Vec<[f64; 3]> = up.iter().map(|p| p.map(f64::from)).collect();
+        Truth {
+            image: flat64(&matedit::reference::forward(prep)),
+            grads: matedit::reference::backward(prep, &gu),
+        }
+    }
+
+    /// Asserts that `image` is within `image_tol` and each gradient within `grad_tol` of
+    /// that output's largest value, printing each worst error (seen with --nocapture).
+    pub fn check(
+        &self,
+        what: &str,
+        image: &[[f32; 3]],
+        grads: &matedit::Gradients,
+        image_tol: f64,
+        grad_tol: f64,
+    ) {
+        let r = &self.grads;
+        for (name, got, want, tol) in [
+            ("image", flat32(image), self.image.clone(), image_tol),
+            ("dL", flat32(&grads.d_env), flat64(&r.d_env), grad_tol),
+            (
+                "dn",
+                flat32(&grads.d_normals),
+                flat64(&r.d_normals),
+                grad_tol,
+            ),
+            (
+                "dctrl",
+                grads.d_ctrl.iter().map(|&v| v as f64).collect(),
+                r.d_ctrl.to_vec(),
+                grad_tol,
+            ),
+        ] {
+            let scale = max_abs(&want);
+            assert!(scale > 0.0, "{what}: the reference's {name} is all zero");
+            let err = got
+                .iter()
+                .zip(&want)
+                .fold(0.0f64, |a, (g, w)| a.max((g - w).abs()));
+            eprintln!(
+                "{what} {name}: max error {:.2e} of max {scale:.3e}",
+                err / scale
+            );
+            assert_close(&format!("{what} {name}"), &got, &want, tol * scale, 0.0);
+        }
+    }
+}
