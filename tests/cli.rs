@@ -1,10 +1,10 @@
 //! End-to-end runs of the `matedit` binary: every subcommand's happy path, every output
 //! format read back with `matedit::io` and compared with a render done through the library
-//! on the CPU reference, and every kind of bad input (exit code 2, a one-line error naming
-//! the file, no output left behind, no panic).
+//! on the same (fast CPU) path, the devices and thread counts against each other, and every
+//! kind of bad input (exit code 2, a one-line error naming the file, no output left behind,
+//! no panic).
 //!
-//! Scenes are tiny (16 x 16 sphere, 8 x 16 environment, `--device cpu`) so that the f64
-//! reference keeps the suite fast on CI's two cores.
+//! Scenes are tiny (16 x 16 sphere, 8 x 16 environment, `--device cpu`).
 
 use std::path::{Path, PathBuf};
 
@@ -631,7 +631,75 @@ fn no_adapter_for_device_gpu_is_a_runtime_error_with_the_hint() {
     assert!(out.exists());
 }
 
+#[test]
+fn devices_and_thread_counts_agree() {
+    let d = dir();
+    let run = |name: &str, args: &[&str]| {
+        let out = d.path().join(name);
+        let res = matedit()
+            .args([
+                "render",
+                "-o",
+                path_str(&out),
+                "--sphere",
+                "24",
+                "--env-size",
+                "8x16",
+            ])
+            .args(args)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&res.stderr).into_owned();
+        assert!(res.status.success(), "{stderr}");
+        (
+            std::fs::read(&out).unwrap(),
+            io::npy::read(&out).unwrap().data,
+            stderr,
+        )
+    };
+    let (one, img1, err1) = run("t1.npy", &["--device", "cpu", "--threads", "1"]);
+    let (two, _, err2) = run("t2.npy", &["--device", "cpu", "--threads", "2"]);
+    assert!(
+        err1.contains("device: cpu: f32") && err1.contains("1 thread\n"),
+        "{err1}"
+    );
+    assert!(err2.contains("2 threads"), "{err2}");
+    assert_eq!(one, two, "1 and 2 threads must give the same bytes");
+    let (_, reference, err) = run("r.npy", &["--device", "reference"]);
+    assert!(err.contains("f64 reference"), "{err}");
+    let max = reference.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    for (a, b) in img1.iter().zip(&reference) {
+        assert!((a - b).abs() <= 1e-5 * max, "{a} vs {b}");
+    }
+}
+
+#[test]
+fn auto_without_a_hardware_gpu_runs_the_fast_cpu_path() {
+    let d = dir();
+    let out = d.path().join("a.npy");
+    let res = tiny_render(&out)
+        .env("WGPU_ADAPTER_NAME", "matedit-test-no-such-adapter")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&res.stderr);
+    assert!(res.status.success(), "{stderr}");
+    assert!(stderr.contains("device: cpu: f32"), "{stderr}");
+}
+
 // ---------------------------------------------------------------- bad input
+
+#[test]
+fn unknown_simd_level() {
+    let d = dir();
+    let out = d.path().join("x.npy");
+    fails_with(
+        tiny_render(&out)
+            .env("MATEDIT_SIMD", "avx9")
+            .args(["--device", "cpu"]),
+        d.path(),
+        &["MATEDIT_SIMD", "avx9", "avx512, avx2, neon or scalar"],
+    );
+}
 
 #[test]
 fn missing_normals_file() {
@@ -905,6 +973,7 @@ fn usage_errors_exit_2() {
         vec!["render", "-o", o, "--preset", "nope"],
         vec!["render", "-o", o, "--env-size", "64"],
         vec!["render", "-o", o, "--device", "tpu"],
+        vec!["render", "-o", o, "--threads", "0"],
         vec!["render"],
         vec!["grad", "-o", o],
     ] {
