@@ -1,170 +1,1238 @@
-//! Forward and backward timings of each backend on the same scene: a sphere against an
-//! env map, orthographic, with a random HDR-ish map and a glossy material.
+//! The layer's speed and accuracy on every path, beside the peer implementations, in one run.
 //!
-//! `cargo bench --bench layer -- [SIZE] [HLxWL] [REPS]` (defaults: 128 64x128 3). Prints one
-//! line per backend and pass: median wall seconds and Mpairs/s (pairs = foreground pixels x
-//! texels), and the GPU's max error against the CPU reference relative to each output's
-//! largest value.
+//! `cargo bench --bench layer -- [OPTIONS]` (`--help` lists them). For each scene (128 x 128
+//! and 256 x 256 spheres, a 256 x 256 bumpy sphere) against a 64 x 128 env map (the first
+//! `.exr` in ../shared/data/envmaps, downsampled; the built-in sky without it), and each
+//! material (a glossy and a diffuse preset), orthographic, `equirect`:
+//!
+//! - the f64 reference's image and gradients are computed once (the ground truth, cached
+//!   for the whole scene and material); that computation is also the `reference` path's
+//!   timing unless `--ref-reps N` asks for N timed runs through `Device::Reference`;
+//! - each in-process path (`cpu`, `gpu`, `reference`) is timed through
+//!   `matedit::Renderer`: `fwd` = one render call, `fb` = one render call plus one
+//!   backward call; median of `--reps` runs after a warm-up;
+//! - the release command line (`matedit render` and `matedit grad --device cpu` as
+//!   separate processes on the same inputs written as NPY/JSON) is timed whole, as a
+//!   user sees it: `cli-cpu` `fwd` = render process, `fb` = render + grad processes;
+//! - the peers (../shared/peers/time_peers.py, Dr.Jit and Numba, 2 threads each) are run
+//!   on the same files, when Python can import them; their outputs are checked too.
+//!
+//! Every record gives the median seconds, M pairs/s (foreground pixels x texels with
+//! d_omega > 0, per second) and the error against the f64 reference: max abs error over
+//! the reference's max abs value, for the image and each gradient (d_env, d_normals,
+//! d_ctrl). The upstream gradient is a fixed pseudo-random image in [-1, 1]. Peers also
+//! get ratios: peer seconds / matedit seconds (> 1: matedit is faster), against the
+//! in-process `cpu` path and against the whole command-line processes.
+//!
+//! Output: a table on stdout; target/bench/layer.json and layer.csv.
 
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::Command;
 use std::time::Instant;
 
+use matedit::io::npy;
 use matedit::prepare::Prepared;
+use matedit::reference::{self, GradientsF64};
 use matedit::{
-    Backend, Batch, Camera, Convention, EnvMap, Image, Material, NormalMap, Scene, reference,
+    Batch, Camera, Convention, Device, EnvMap, Gradients, Image, Material, NormalMap, Renderer,
+    Scene, presets,
 };
+use serde_json::{Value, json};
 
-fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
+const USAGE: &str = "\
+cargo bench --bench layer -- [OPTIONS]
+  --scenes LIST      of sphere128, sphere256, bumpy256 [all]
+  --materials LIST   preset names [plastic-red,clay]
+  --paths LIST       of cpu, gpu, reference [cpu,reference]; the reference's results are
+                     computed once per scene and material whatever this says
+  --reps N           timed runs per path and pass, after a warm-up [5]
+  --ref-reps N       0: time the reference by its one ground-truth run (f64 functions, cold);
+                     N > 0: N timed runs through Device::Reference as well [0]
+  --cli-reps N       timed runs of each command-line process, after a warm-up; 0 skips [--reps]
+  --peers LIST       of drjit, numba, torch, or none [drjit,numba]
+  --peer-reps N      timed runs per peer (time_peers.py --reps) [--reps]
+  --threads N        rayon threads here and --threads of the command line [2, as the peers]
+  --env FILE         an .exr or .npy env map instead of the first in ../shared/data/envmaps
+  --out DIR          where layer.json and layer.csv go [target/bench]
+  --keep             keep the files given to the command line and the peers, and what they
+                     wrote, in DIR/inputs/SCENE-MATERIAL (else a temporary folder), with the
+                     reference's image, d_env and d_normals as float32 reference_*.npy";
+
+const SCENES: [&str; 3] = ["sphere128", "sphere256", "bumpy256"];
+const ENV_SIZE: (usize, usize) = (64, 128);
+const BUMPY_SEED: u64 = 1;
+const UPSTREAM_SEED: u64 = 0x5eed;
+
+struct Opts {
+    scenes: Vec<String>,
+    materials: Vec<String>,
+    paths: Vec<String>,
+    reps: usize,
+    ref_reps: usize,
+    cli_reps: usize,
+    peers: Vec<String>,
+    peer_reps: usize,
+    threads: usize,
+    env: Option<PathBuf>,
+    out: PathBuf,
+    keep: bool,
 }
 
-/// This process's user + system CPU seconds (Linux; 0 elsewhere): less sensitive than
-/// wall time to other load on a small machine.
-fn cpu_seconds() -> f64 {
-    let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else {
-        return 0.0;
+fn list(s: &str) -> Vec<String> {
+    s.split(',')
+        .map(str::trim)
+        .filter(|v| !v.is_empty())
+        .map(str::to_string)
+        .collect()
+}
+
+fn parse_args() -> Result<Opts, String> {
+    let mut o = Opts {
+        scenes: SCENES.iter().map(|s| s.to_string()).collect(),
+        materials: list("plastic-red,clay"),
+        paths: list("cpu,reference"),
+        reps: 5,
+        ref_reps: 0,
+        cli_reps: usize::MAX,
+        peers: list("drjit,numba"),
+        peer_reps: usize::MAX,
+        threads: 2,
+        env: None,
+        out: target_dir().join("bench"),
+        keep: false,
     };
-    // fields after the command name (which is in parentheses): utime is the 12th, stime the 13th
-    let rest = stat.rsplit_once(')').map_or("", |(_, r)| r);
-    let f: Vec<&str> = rest.split_whitespace().collect();
-    let field = |i: usize| f.get(i).and_then(|v| v.parse::<f64>().ok()).unwrap_or(0.0);
-    (field(11) + field(12)) / 100.0
+    let mut args = std::env::args().skip(1);
+    let num = |v: Option<String>, name: &str| -> Result<usize, String> {
+        v.as_deref()
+            .and_then(|s| s.parse().ok())
+            .ok_or_else(|| format!("{name} needs a number"))
+    };
+    while let Some(a) = args.next() {
+        match a.as_str() {
+            "--bench" => {} // cargo's
+            "--help" | "-h" => {
+                println!("{USAGE}");
+                std::process::exit(0);
+            }
+            "--scenes" => o.scenes = list(&args.next().unwrap_or_default()),
+            "--materials" => o.materials = list(&args.next().unwrap_or_default()),
+            "--paths" => o.paths = list(&args.next().unwrap_or_default()),
+            "--peers" => o.peers = list(&args.next().unwrap_or_default()),
+            "--reps" => o.reps = num(args.next(), "--reps")?.max(1),
+            "--ref-reps" => o.ref_reps = num(args.next(), "--ref-reps")?,
+            "--cli-reps" => o.cli_reps = num(args.next(), "--cli-reps")?,
+            "--peer-reps" => o.peer_reps = num(args.next(), "--peer-reps")?.max(1),
+            "--threads" => o.threads = num(args.next(), "--threads")?.max(1),
+            "--env" => o.env = args.next().map(PathBuf::from),
+            "--out" => o.out = PathBuf::from(args.next().unwrap_or_default()),
+            "--keep" => o.keep = true,
+            _ => return Err(format!("unknown argument '{a}'")),
+        }
+    }
+    if o.cli_reps == usize::MAX {
+        o.cli_reps = o.reps;
+    }
+    if o.peer_reps == usize::MAX {
+        o.peer_reps = o.reps;
+    }
+    o.peers.retain(|p| p != "none");
+    for s in &o.scenes {
+        if !SCENES.contains(&s.as_str()) {
+            return Err(format!("unknown scene '{s}': expected one of {SCENES:?}"));
+        }
+    }
+    for m in &o.materials {
+        if presets::lookup(m).is_none() {
+            return Err(format!(
+                "unknown material '{m}': expected one of {:?}",
+                presets::names()
+            ));
+        }
+    }
+    for p in &o.paths {
+        if !["cpu", "gpu", "reference"].contains(&p.as_str()) {
+            return Err(format!(
+                "unknown path '{p}': expected cpu, gpu or reference"
+            ));
+        }
+    }
+    Ok(o)
 }
 
-fn time<T>(reps: usize, mut f: impl FnMut() -> T) -> (f64, T) {
-    let mut out = f(); // warm-up
-    let mut t = Vec::new();
-    let c0 = cpu_seconds();
+/// target/ of this build: the command-line binary lives in target/PROFILE/.
+fn target_dir() -> PathBuf {
+    let bin = Path::new(env!("CARGO_BIN_EXE_matedit"));
+    bin.parent()
+        .and_then(Path::parent)
+        .map(Path::to_path_buf)
+        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("target"))
+}
+
+fn shared_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared")
+}
+
+fn median(v: &[f64]) -> f64 {
+    let mut v = v.to_vec();
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n == 0 {
+        f64::NAN
+    } else if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        (v[n / 2 - 1] + v[n / 2]) / 2.0
+    }
+}
+
+/// splitmix64 stream, uniform in [-1, 1).
+fn signed_uniform(seed: u64) -> impl FnMut() -> f32 {
+    let mut state = seed;
+    move || {
+        state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^= z >> 31;
+        ((z >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// machine and inputs
+
+fn machine() -> Value {
+    let info = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
+    let field = |name: &str| {
+        info.lines()
+            .find(|l| l.starts_with(name))
+            .and_then(|l| l.split_once(':'))
+            .map(|(_, v)| v.trim().to_string())
+    };
+    let model = field("model name").unwrap_or_else(|| "unknown".into());
+    let flags = field("flags").unwrap_or_default();
+    let simd: Vec<&str> = ["avx512f", "avx2", "fma"]
+        .into_iter()
+        .filter(|f| flags.split_whitespace().any(|x| x == *f))
+        .collect();
+    let cores = std::thread::available_parallelism().map_or(0, |n| n.get());
+    json!({"cpu": model, "hardware_threads": cores, "simd": simd.join(" ")})
+}
+
+/// The env map: a real HDR map downsampled to 64 x 128, else the built-in sky.
+fn load_env(opts: &Opts) -> (EnvMap, String) {
+    let (h, w) = ENV_SIZE;
+    let path = opts.env.clone().or_else(|| {
+        let mut maps: Vec<PathBuf> = std::fs::read_dir(shared_dir().join("data/envmaps"))
+            .ok()?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.extension().is_some_and(|x| x.eq_ignore_ascii_case("exr")))
+            .collect();
+        maps.sort();
+        maps.into_iter().next()
+    });
+    let sky = || {
+        (
+            matedit::defaults::procedural_env(h, w, Convention::Equirect),
+            format!("built-in procedural sky, {h}x{w}"),
+        )
+    };
+    let Some(path) = path else {
+        println!("env: no ../shared/data/envmaps/*.exr; using the built-in sky");
+        return sky();
+    };
+    let loaded = matedit::io::load_env(&path, Convention::Equirect).and_then(|l| {
+        let (fh, fw) = (l.env.height, l.env.width);
+        matedit::io::resample::fit(
+            l.env,
+            matedit::io::EnvSize::Size {
+                height: h,
+                width: w,
+            },
+            &path,
+        )
+        .map(|e| (e, fh, fw, l.clamped))
+    });
+    match loaded {
+        Ok((env, fh, fw, clamped)) => {
+            let name = path.file_name().unwrap_or_default().to_string_lossy();
+            (
+                env,
+                format!(
+                    "{name} ({fh}x{fw}, {clamped} negative values clamped), downsampled to {h}x{w}"
+                ),
+            )
+        }
+        Err(e) => {
+            println!("env: {e}; using the built-in sky");
+            sky()
+        }
+    }
+}
+
+fn normals_of(scene: &str) -> NormalMap {
+    match scene {
+        "sphere128" => NormalMap::sphere(128),
+        "sphere256" => NormalMap::sphere(256),
+        _ => NormalMap::bumpy(256, 256, BUMPY_SEED),
+    }
+}
+
+fn upstream_for(w: usize, h: usize) -> Image {
+    let mut next = signed_uniform(UPSTREAM_SEED);
+    Image {
+        width: w,
+        height: h,
+        pixels: (0..w * h).map(|_| [next(), next(), next()]).collect(),
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// errors against the reference
+
+/// max |got - want| / max |want| (0 / 0 = 0).
+fn rel_err(got: impl Iterator<Item = f64>, want: impl Iterator<Item = f64>) -> f64 {
+    let (mut err, mut scale) = (0.0f64, 0.0f64);
+    for (g, w) in got.zip(want) {
+        err = err.max((g - w).abs());
+        scale = scale.max(w.abs());
+        if !g.is_finite() {
+            err = f64::INFINITY;
+        }
+    }
+    if err == 0.0 { 0.0 } else { err / scale }
+}
+
+fn flat3<T: Copy + Into<f64>>(v: &[[T; 3]]) -> impl Iterator<Item = f64> + '_ {
+    v.iter().flatten().map(|&x| x.into())
+}
+
+/// The reference's results for one scene and material.
+struct Truth {
+    image: Vec<[f64; 3]>,
+    grads: GradientsF64,
+    fwd_s: f64,
+    bwd_s: f64,
+}
+
+/// Errors of an image and (optionally) gradients, each as f64 slices.
+struct Got<'a> {
+    image: &'a [f64],
+    grads: Option<(&'a [f64], &'a [f64], &'a [f64])>,
+}
+
+fn errors(t: &Truth, got: Got) -> Value {
+    let mut e = serde_json::Map::new();
+    if got.image.len() == t.image.len() * 3 {
+        e.insert(
+            "image".into(),
+            json!(rel_err(got.image.iter().copied(), flat3(&t.image))),
+        );
+    } else {
+        e.insert("image_shape_mismatch".into(), json!(got.image.len()));
+    }
+    if let Some((d_env, d_n, d_ctrl)) = got.grads {
+        let g = &t.grads;
+        let pairs: [(&str, &[f64], Vec<f64>); 3] = [
+            ("d_env", d_env, flat3(&g.d_env).collect()),
+            ("d_normals", d_n, flat3(&g.d_normals).collect()),
+            ("d_ctrl", d_ctrl, g.d_ctrl.to_vec()),
+        ];
+        for (name, got, want) in pairs {
+            if got.len() == want.len() {
+                e.insert(
+                    name.into(),
+                    json!(rel_err(got.iter().copied(), want.into_iter())),
+                );
+            } else {
+                e.insert(format!("{name}_shape_mismatch"), json!(got.len()));
+            }
+        }
+    }
+    Value::Object(e)
+}
+
+fn f64s(v: &[[f32; 3]]) -> Vec<f64> {
+    flat3(v).collect()
+}
+
+fn errors_f32(t: &Truth, image: &Image, grads: Option<&Gradients>) -> Value {
+    let img = f64s(&image.pixels);
+    match grads {
+        None => errors(
+            t,
+            Got {
+                image: &img,
+                grads: None,
+            },
+        ),
+        Some(g) => {
+            let (e, n) = (f64s(&g.d_env), f64s(&g.d_normals));
+            let c: Vec<f64> = g.d_ctrl.iter().map(|&v| v as f64).collect();
+            errors(
+                t,
+                Got {
+                    image: &img,
+                    grads: Some((&e, &n, &c)),
+                },
+            )
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// timing
+
+struct Rec {
+    path: String,
+    scene: String,
+    material: String,
+    pass: &'static str,
+    times: Vec<f64>,
+    /// Timed runs behind the median (peers report the median alone).
+    reps: usize,
+    pairs: f64,
+    errors: Value,
+    extra: serde_json::Map<String, Value>,
+}
+
+impl Rec {
+    fn median(&self) -> f64 {
+        median(&self.times)
+    }
+    fn json(&self) -> Value {
+        let m = self.median();
+        let mut v = json!({
+            "path": self.path, "scene": self.scene, "material": self.material,
+            "pass": self.pass, "median_s": m, "reps": self.reps,
+            "mpairs_per_s": self.pairs / m / 1e6, "errors": self.errors,
+        });
+        if let Value::Object(o) = &mut v {
+            o.extend(self.extra.clone());
+        }
+        v
+    }
+}
+
+/// fwd and fb timings of one renderer: warm-up (if asked), then `reps` runs of each.
+fn time_renderer(
+    r: &Renderer,
+    batch: &Batch,
+    upstream: &[Image],
+    reps: usize,
+    warm_up: bool,
+) -> Result<(Vec<f64>, Vec<f64>, Image, Gradients), matedit::Error> {
+    if warm_up {
+        r.render(batch)?;
+    }
+    let mut fwd = Vec::new();
+    let mut image = None;
     for _ in 0..reps {
         let s = Instant::now();
-        out = f();
-        t.push(s.elapsed().as_secs_f64());
+        let out = r.render(batch)?;
+        fwd.push(s.elapsed().as_secs_f64());
+        image = out.into_iter().next();
     }
-    eprintln!(
-        "  (cpu-s per run {:.2}, wall {:.2})",
-        (cpu_seconds() - c0) / reps as f64,
-        median(t.clone())
-    );
-    (median(t), out)
+    if warm_up {
+        r.render(batch)?;
+        r.backward(batch, upstream)?;
+    }
+    let mut fb = Vec::new();
+    let mut grads = None;
+    for _ in 0..reps {
+        let s = Instant::now();
+        let out = r.render(batch)?;
+        let g = r.backward(batch, upstream)?;
+        fb.push(s.elapsed().as_secs_f64());
+        image = out.into_iter().next();
+        grads = g.into_iter().next();
+    }
+    Ok((
+        fwd,
+        fb,
+        image.expect("reps >= 1"),
+        grads.expect("reps >= 1"),
+    ))
 }
 
-fn rel_err(got: &[[f32; 3]], want: &[[f64; 3]]) -> f64 {
-    let scale = want.iter().flatten().fold(0.0f64, |a, b| a.max(b.abs()));
-    let err = got
-        .iter()
-        .flatten()
-        .zip(want.iter().flatten())
-        .fold(0.0f64, |a, (&g, &w)| a.max((g as f64 - w).abs()));
-    err / scale
+// ---------------------------------------------------------------------------------------
+// command line and peers: files
+
+fn write(path: &Path, bytes: &[u8]) {
+    std::fs::write(path, bytes).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+}
+
+fn read_npy(path: &Path) -> Result<npy::NpyArray, String> {
+    let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    npy::parse(&bytes).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// The arrays of an uncompressed `.npz` (a zip of `.npy` files, as `numpy.savez` writes),
+/// found through the zip's central directory.
+fn read_npz(path: &Path) -> Result<BTreeMap<String, npy::NpyArray>, String> {
+    let b = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let bad = |m: &str| format!("{}: {m}", path.display());
+    let u16_at = |o: usize| {
+        b.get(o..o + 2)
+            .map(|x| u16::from_le_bytes([x[0], x[1]]) as usize)
+            .ok_or_else(|| bad("truncated zip"))
+    };
+    let u32_at = |o: usize| {
+        b.get(o..o + 4)
+            .map(|x| u32::from_le_bytes([x[0], x[1], x[2], x[3]]) as usize)
+            .ok_or_else(|| bad("truncated zip"))
+    };
+    let eocd = (0..=b.len().saturating_sub(22))
+        .rev()
+        .find(|&o| b[o..].starts_with(b"PK\x05\x06"))
+        .ok_or_else(|| bad("no zip end record"))?;
+    let entries = u16_at(eocd + 10)?;
+    let mut cd = u32_at(eocd + 16)?;
+    if entries == 0xffff || cd == 0xffff_ffff {
+        return Err(bad("zip64 archives are not read here"));
+    }
+    let mut out = BTreeMap::new();
+    for _ in 0..entries {
+        if !b.get(cd..).is_some_and(|x| x.starts_with(b"PK\x01\x02")) {
+            return Err(bad("bad zip central directory"));
+        }
+        let method = u16_at(cd + 10)?;
+        let (name_len, extra_len, comment_len) =
+            (u16_at(cd + 28)?, u16_at(cd + 30)?, u16_at(cd + 32)?);
+        let local = u32_at(cd + 42)?;
+        let name = b
+            .get(cd + 46..cd + 46 + name_len)
+            .map(|n| String::from_utf8_lossy(n).into_owned())
+            .ok_or_else(|| bad("truncated zip"))?;
+        if method != 0 || local == 0xffff_ffff {
+            return Err(bad(&format!(
+                "{name}: compressed or zip64 entries are not read here"
+            )));
+        }
+        if !b.get(local..).is_some_and(|x| x.starts_with(b"PK\x03\x04")) {
+            return Err(bad("bad zip local header"));
+        }
+        let data = local + 30 + u16_at(local + 26)? + u16_at(local + 28)?;
+        // the .npy header says how much data follows; the rest of the zip is ignored
+        let arr = npy::parse(b.get(data..).unwrap_or_default()).map_err(|e| bad(&e))?;
+        out.insert(name.trim_end_matches(".npy").to_string(), arr);
+        cd += 46 + name_len + extra_len + comment_len;
+    }
+    Ok(out)
+}
+
+struct Files {
+    /// The temporary folder, removed when dropped (None with --keep).
+    _temp: Option<tempfile::TempDir>,
+    dir: PathBuf,
+    normals: PathBuf,
+    env: PathBuf,
+    material: PathBuf,
+    upstream: PathBuf,
+}
+
+fn write_inputs(scene: &Scene, upstream: &Image, keep: Option<PathBuf>) -> Files {
+    let (temp, dir) = match keep {
+        Some(d) => {
+            std::fs::create_dir_all(&d).unwrap_or_else(|e| panic!("{}: {e}", d.display()));
+            (None, d)
+        }
+        None => {
+            let t = tempfile::Builder::new()
+                .prefix("matedit-bench-")
+                .tempdir()
+                .expect("temp folder");
+            let d = t.path().to_path_buf();
+            (Some(t), d)
+        }
+    };
+    let p = |n: &str| dir.join(n);
+    let (normals, env, material, up) = (
+        p("normals.npy"),
+        p("env.npy"),
+        p("ctrl.json"),
+        p("upstream.npy"),
+    );
+    let n = &scene.normals;
+    write(&normals, &npy::encode_rgb(n.width, n.height, &n.normals));
+    let e = &scene.env;
+    write(&env, &npy::encode_rgb(e.width, e.height, &e.texels));
+    // {"name", "ctrl": [108]}: the command line's material file and the peers' CTRL
+    write(
+        &material,
+        &matedit::io::json::encode_material(&scene.material, None),
+    );
+    write(
+        &up,
+        &npy::encode_rgb(upstream.width, upstream.height, &upstream.pixels),
+    );
+    Files {
+        _temp: temp,
+        dir,
+        normals,
+        env,
+        material,
+        upstream: up,
+    }
+}
+
+/// Runs a command to completion; its wall seconds, or its stderr's tail on failure.
+fn run_timed(cmd: &mut Command) -> Result<f64, String> {
+    let s = Instant::now();
+    let out = cmd.output().map_err(|e| format!("cannot start: {e}"))?;
+    let t = s.elapsed().as_secs_f64();
+    if out.status.success() {
+        Ok(t)
+    } else {
+        let err = String::from_utf8_lossy(&out.stderr);
+        let tail: String = err.lines().rev().take(3).collect::<Vec<_>>().join(" | ");
+        Err(format!("{}: {tail}", out.status))
+    }
+}
+
+/// `matedit render` and `matedit grad` as whole processes: (render s, grad s) per rep, and
+/// the errors of what they wrote.
+fn time_cli(
+    f: &Files,
+    device: &str,
+    threads: usize,
+    reps: usize,
+    truth: &Truth,
+) -> Result<(Vec<f64>, Vec<f64>, Value, Value), String> {
+    let bin = env!("CARGO_BIN_EXE_matedit");
+    let image = f.dir.join(format!("cli_{device}.npy"));
+    let grads = f.dir.join(format!("cli_{device}_grads"));
+    let common = |sub: &str| {
+        let mut c = Command::new(bin);
+        c.arg(sub)
+            .arg("--normals")
+            .arg(&f.normals)
+            .arg("--env")
+            .arg(&f.env)
+            .arg("--material")
+            .arg(&f.material)
+            .args(["--device", device, "--threads", &threads.to_string()]);
+        c
+    };
+    let mut render = common("render");
+    render.arg("-o").arg(&image);
+    let mut grad = common("grad");
+    grad.arg("--upstream")
+        .arg(&f.upstream)
+        .arg("-o")
+        .arg(&grads);
+    // warm-up: page cache, and a check that both work
+    run_timed(&mut render).map_err(|e| format!("matedit render: {e}"))?;
+    run_timed(&mut grad).map_err(|e| format!("matedit grad: {e}"))?;
+    let (mut tr, mut tg) = (Vec::new(), Vec::new());
+    for _ in 0..reps {
+        tr.push(run_timed(&mut render)?);
+        tg.push(run_timed(&mut grad)?);
+    }
+    // what the processes wrote, against the reference
+    let img = read_npy(&image)?;
+    let d_env = read_npy(&grads.join("d_env.npy"))?;
+    let d_n = read_npy(&grads.join("d_normals.npy"))?;
+    let ctrl_file = grads.join("d_material.json");
+    let ctrl: Value = serde_json::from_slice(&std::fs::read(&ctrl_file).unwrap_or_default())
+        .map_err(|e| format!("{}: {e}", ctrl_file.display()))?;
+    let d_ctrl: Vec<f64> = ctrl["ctrl"]
+        .as_array()
+        .map(|a| a.iter().filter_map(Value::as_f64).collect())
+        .unwrap_or_default();
+    let e_fwd = errors(
+        truth,
+        Got {
+            image: &img.data,
+            grads: None,
+        },
+    );
+    let e_fb = errors(
+        truth,
+        Got {
+            image: &img.data,
+            grads: Some((&d_env.data, &d_n.data, &d_ctrl)),
+        },
+    );
+    Ok((tr, tg, e_fwd, e_fb))
+}
+
+/// The command-line binary's modification time, to notice a rebuild during the run (other
+/// builds in the same target folder overwrite it).
+fn cli_mtime() -> Option<std::time::SystemTime> {
+    std::fs::metadata(env!("CARGO_BIN_EXE_matedit"))
+        .and_then(|m| m.modified())
+        .ok()
+}
+
+/// Whether python3 can import `module`.
+fn python_has(module: &str) -> bool {
+    Command::new("python3")
+        .args(["-c", &format!("import {module}")])
+        .output()
+        .is_ok_and(|o| o.status.success())
+}
+
+/// time_peers.py on the input files: its JSON line.
+fn run_peers(f: &Files, peers: &[String], reps: usize) -> Result<Value, String> {
+    let script = shared_dir().join("peers/time_peers.py");
+    let out = Command::new("python3")
+        .arg(&script)
+        .args([&f.normals, &f.env, &f.material, &f.upstream])
+        .args(["--peers", &peers.join(","), "--reps", &reps.to_string()])
+        .output()
+        .map_err(|e| format!("cannot run python3: {e}"))?;
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let line = stdout
+        .lines()
+        .rev()
+        .find(|l| l.trim_start().starts_with('{'));
+    match line {
+        Some(l) if out.status.success() => {
+            serde_json::from_str(l).map_err(|e| format!("time_peers.py printed {l:?}: {e}"))
+        }
+        _ => Err(format!(
+            "time_peers.py failed ({}): {}",
+            out.status,
+            String::from_utf8_lossy(&out.stderr)
+                .lines()
+                .last()
+                .unwrap_or("")
+        )),
+    }
+}
+
+/// A peer's image and gradients (left beside the normals by time_peers.py) against the
+/// reference: (fwd errors, fb errors).
+fn peer_errors(f: &Files, peer: &str, truth: &Truth) -> (Value, Value) {
+    let img = match read_npy(&f.dir.join(format!("peer_{peer}.npy"))) {
+        Ok(a) => a.data,
+        Err(e) => return (json!({"unread": e}), json!({"unread": e})),
+    };
+    let fwd = errors(
+        truth,
+        Got {
+            image: &img,
+            grads: None,
+        },
+    );
+    let fb = match read_npz(&f.dir.join(format!("peer_{peer}_grads.npz"))) {
+        Ok(g) => match (g.get("d_env"), g.get("d_normals"), g.get("d_ctrl")) {
+            (Some(e), Some(n), Some(c)) => errors(
+                truth,
+                Got {
+                    image: &img,
+                    grads: Some((&e.data, &n.data, &c.data)),
+                },
+            ),
+            _ => json!({"unread": format!("arrays {:?}", g.keys().collect::<Vec<_>>())}),
+        },
+        Err(e) => {
+            let mut v = fwd.clone();
+            v["grads_unread"] = json!(e);
+            v
+        }
+    };
+    (fwd, fb)
+}
+
+// ---------------------------------------------------------------------------------------
+// report
+
+fn fmt_err(e: &Value, key: &str) -> String {
+    match e.get(key).and_then(Value::as_f64) {
+        Some(v) => format!("{v:.1e}"),
+        None => "-".into(),
+    }
+}
+
+fn print_row(r: &Rec) {
+    let m = r.median();
+    println!(
+        "{:<12} {:<10} {:<12} {:<4} {:>9.4} {:>3} {:>9.1} {:>8} {:>8} {:>8} {:>8}",
+        r.path,
+        r.scene,
+        r.material,
+        r.pass,
+        m,
+        r.reps,
+        r.pairs / m / 1e6,
+        fmt_err(&r.errors, "image"),
+        fmt_err(&r.errors, "d_env"),
+        fmt_err(&r.errors, "d_normals"),
+        fmt_err(&r.errors, "d_ctrl"),
+    );
+}
+
+fn header() {
+    println!(
+        "{:<12} {:<10} {:<12} {:<4} {:>9} {:>3} {:>9} {:>8} {:>8} {:>8} {:>8}",
+        "path",
+        "scene",
+        "material",
+        "pass",
+        "median s",
+        "n",
+        "Mpairs/s",
+        "err img",
+        "d_env",
+        "d_normal",
+        "d_ctrl"
+    );
+}
+
+fn csv(records: &[Value]) -> String {
+    let cols = [
+        "path",
+        "scene",
+        "material",
+        "pass",
+        "median_s",
+        "reps",
+        "mpairs_per_s",
+        "err_image",
+        "err_d_env",
+        "err_d_normals",
+        "err_d_ctrl",
+        "ratio_vs_cpu",
+        "ratio_vs_cli",
+    ];
+    let mut out = cols.join(",") + "\n";
+    for r in records {
+        let cell = |c: &str| -> String {
+            let v = match c.strip_prefix("err_") {
+                Some(k) => &r["errors"][k],
+                None => &r[c],
+            };
+            match v {
+                Value::Null => String::new(),
+                Value::String(s) => s.clone(),
+                other => other.to_string(),
+            }
+        };
+        out += &cols.iter().map(|c| cell(c)).collect::<Vec<_>>().join(",");
+        out.push('\n');
+    }
+    out
 }
 
 fn main() {
-    let args: Vec<String> = std::env::args()
-        .skip(1)
-        .filter(|a| !a.starts_with('-'))
-        .collect();
-    let size: usize = args.first().and_then(|s| s.parse().ok()).unwrap_or(128);
-    let (hl, wl) = args
-        .get(1)
-        .and_then(|s| s.split_once('x'))
-        .and_then(|(a, b)| Some((a.parse().ok()?, b.parse().ok()?)))
-        .unwrap_or((64, 128));
-    let reps: usize = args.get(2).and_then(|s| s.parse().ok()).unwrap_or(3);
-    // a 4th argument `gpu` skips the CPU reference (and the error columns)
-    let gpu_only = args.get(3).is_some_and(|s| s == "gpu");
-
-    // deterministic HDR-ish map: smooth sky with a bright patch, lower half dimmer
-    let texels = (0..hl * wl)
-        .map(|i| {
-            let (r, c) = (i / wl, i % wl);
-            let v = 0.3 + 0.7 * ((r * 7 + c * 3) % 11) as f32 / 10.0;
-            let sun = if r < hl / 4 && c % (wl / 4) < 2 {
-                50.0
-            } else {
-                0.0
-            };
-            let k = if r > hl / 2 { 0.3 } else { 1.0 };
-            [k * v + sun, k * v * 0.9 + sun, k * v * 0.8 + sun]
-        })
-        .collect();
-    let scene = Scene {
-        normals: NormalMap::sphere(size),
-        env: EnvMap::new(hl, wl, Convention::Equirect, texels).unwrap(),
-        material: Material::constant("bench", [(0.3, 0.0), (1.2, 30.0), (2.0, 300.0)]).unwrap(),
-        camera: Camera::Orthographic,
+    let opts = match parse_args() {
+        Ok(o) => o,
+        Err(e) => {
+            eprintln!("layer bench: {e}\n\n{USAGE}");
+            std::process::exit(2);
+        }
     };
-    let batch = Batch::single(scene.clone()).unwrap();
-    let prep = Prepared::new(&scene);
-    let pairs = (prep.pixels.len() * prep.lit.len()) as f64 / 1e6;
-    let upstream = vec![Image {
-        width: size,
-        height: size,
-        pixels: vec![[1.0, 0.5, 0.25]; size * size],
-    }];
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(opts.threads)
+        .build_global()
+        .expect("rayon's global pool is set once");
+    let started = Instant::now();
+
+    let mach = machine();
     println!(
-        "scene: sphere {size}x{size} ({} fg px), env {hl}x{wl} ({} lit texels), {pairs:.1} Mpairs; median of {reps}",
-        prep.pixels.len(),
-        prep.lit.len()
+        "machine: {} ({} hardware threads; {}); {} rayon threads here and in the command line",
+        mach["cpu"].as_str().unwrap_or(""),
+        mach["hardware_threads"],
+        mach["simd"].as_str().unwrap_or(""),
+        opts.threads
     );
 
-    let c = reference::Reference;
-    let g64: Vec<[f64; 3]> = upstream[0]
-        .pixels
+    // the renderers of the in-process paths
+    let mut renderers: Vec<(String, Renderer)> = Vec::new();
+    let mut describe = serde_json::Map::new();
+    for p in &opts.paths {
+        let device = match p.as_str() {
+            "cpu" => Device::Cpu,
+            "gpu" => Device::Gpu,
+            _ => Device::Reference,
+        };
+        match Renderer::new(device) {
+            Ok(r) => {
+                println!("path {p}: {}", r.describe());
+                describe.insert(p.clone(), json!(r.describe()));
+                renderers.push((p.clone(), r));
+            }
+            Err(e) => {
+                println!("path {p}: skipped: {e}");
+                describe.insert(p.clone(), json!(format!("skipped: {e}")));
+            }
+        }
+    }
+    let reference_desc = Renderer::new(Device::Reference).map(|r| r.describe()).ok();
+    if let Some(cpu) = renderers.iter().find(|(p, _)| p == "cpu")
+        && Some(cpu.1.describe()) == reference_desc
+    {
+        println!("note: Device::Cpu describes itself as the reference (it still delegates to it)");
+    }
+
+    let (env, env_desc) = load_env(&opts);
+    println!("env: {env_desc}; equirect, orthographic camera");
+    let materials: Vec<Material> = opts
+        .materials
         .iter()
-        .map(|p| p.map(f64::from))
+        .map(|m| presets::lookup(m).expect("checked"))
         .collect();
-    let (cf, cimg, cb, cgrad) = if gpu_only {
-        (
-            f64::NAN,
-            Vec::new(),
-            f64::NAN,
-            reference::backward(
-                &Prepared::new(&Scene {
-                    normals: NormalMap::sphere(1),
-                    ..scene.clone()
-                }),
-                &[[0.0; 3]],
-            ),
-        )
+    for m in presets::all() {
+        if opts.materials.iter().any(|n| n == m.name) {
+            println!("material {}: {}", m.name, m.description);
+        }
+    }
+
+    // the command line and the peers
+    let cli_devices: Vec<&str> = if opts.cli_reps == 0 {
+        Vec::new()
     } else {
-        let (cf, cimg) = time(reps, || reference::forward(&prep));
-        let (cb, cgrad) = time(reps, || reference::backward(&prep, &g64));
-        println!(
-            "{:<60} forward {cf:8.3} s {:8.1} Mpairs/s | backward {cb:8.3} s",
-            c.describe(),
-            pairs / cf
-        );
-        (cf, cimg, cb, cgrad)
+        renderers
+            .iter()
+            .map(|(p, _)| p.as_str())
+            .filter(|p| *p != "reference")
+            .collect()
+    };
+    let peers_script = shared_dir().join("peers/time_peers.py");
+    let peers: Vec<String> = if opts.peers.is_empty() {
+        println!("peers: none asked");
+        Vec::new()
+    } else if !peers_script.is_file() {
+        println!("peers: skipped: no {}", peers_script.display());
+        Vec::new()
+    } else {
+        let (have, missing): (Vec<String>, Vec<String>) =
+            opts.peers.iter().cloned().partition(|p| python_has(p));
+        if !missing.is_empty() {
+            println!("peers: skipped {missing:?}: python3 cannot import them");
+        }
+        if !have.is_empty() {
+            println!(
+                "peers: {have:?} through {} (2 threads each, median of {})",
+                peers_script.display(),
+                opts.peer_reps
+            );
+        }
+        have
     };
 
-    match matedit::gpu::GpuRenderer::new() {
-        Err(e) => println!("gpu: not run: {e}"),
-        Ok(g) => {
-            let (gf, gimg) = time(reps, || g.render(&batch).unwrap());
-            let (gb, ggrad) = time(reps, || g.backward(&batch, &upstream).unwrap());
+    let mut cli_built = cli_mtime();
+    if !cli_devices.is_empty() {
+        let bench_built = std::env::current_exe()
+            .and_then(std::fs::metadata)
+            .and_then(|m| m.modified())
+            .ok();
+        if let (Some(c), Some(b)) = (cli_built, bench_built)
+            && let Ok(d) = c.duration_since(b)
+            && d.as_secs() > 60
+        {
             println!(
-                "{:<60} forward {gf:8.3} s {:8.1} Mpairs/s | backward {gb:8.3} s | vs cpu: fwd {:.2}x bwd {:.2}x",
-                g.describe(),
-                pairs / gf,
-                cf / gf,
-                cb / gb
+                "warning: {} was built {} s after this bench: it may hold other code",
+                env!("CARGO_BIN_EXE_matedit"),
+                d.as_secs()
             );
-            if gpu_only {
-                return;
-            }
-            let dctrl_scale = cgrad.d_ctrl.iter().fold(0.0f64, |a, b| a.max(b.abs()));
-            let dctrl_err = ggrad[0]
-                .d_ctrl
-                .iter()
-                .zip(&cgrad.d_ctrl)
-                .fold(0.0f64, |a, (&x, &y)| a.max((x as f64 - y).abs()));
+        }
+        println!("command line: {}", env!("CARGO_BIN_EXE_matedit"));
+    }
+    let mut records: Vec<Rec> = Vec::new();
+    let mut ratios: Vec<Value> = Vec::new();
+    let mut notes: Vec<String> = Vec::new();
+    for scene_name in &opts.scenes {
+        let normals = normals_of(scene_name);
+        let (w, h) = (normals.width, normals.height);
+        let upstream = upstream_for(w, h);
+        let g64: Vec<[f64; 3]> = upstream.pixels.iter().map(|p| p.map(f64::from)).collect();
+        for material in &materials {
+            let scene = Scene {
+                normals: normals.clone(),
+                env: env.clone(),
+                material: material.clone(),
+                camera: Camera::Orthographic,
+            };
+            let batch = Batch::single(scene.clone()).expect("valid scene");
+            let ups = vec![upstream.clone()];
+
+            // ground truth, once
+            let s = Instant::now();
+            let prep = Prepared::new(&scene);
+            let image = reference::forward(&prep);
+            let fwd_s = s.elapsed().as_secs_f64();
+            let s = Instant::now();
+            let grads = reference::backward(&prep, &g64);
+            let bwd_s = s.elapsed().as_secs_f64();
+            let truth = Truth {
+                image,
+                grads,
+                fwd_s,
+                bwd_s,
+            };
+            let pairs = (prep.pixels.len() * prep.texels.len()) as f64;
             println!(
-                "gpu max error / max value: image {:.2e}, dL {:.2e}, dn {:.2e}, dctrl {:.2e}",
-                rel_err(&gimg[0].pixels, &cimg),
-                rel_err(&ggrad[0].d_env, &cgrad.d_env),
-                rel_err(&ggrad[0].d_normals, &cgrad.d_normals),
-                dctrl_err / dctrl_scale
+                "\n== {scene_name} ({w}x{h}, {} foreground px) x {} texels = {:.1} M pairs; {}; \
+                 reference computed in {:.2} s fwd + {:.2} s bwd",
+                prep.pixels.len(),
+                prep.texels.len(),
+                pairs / 1e6,
+                material.name,
+                truth.fwd_s,
+                truth.bwd_s
+            );
+            header();
+            let rec = |path: &str, pass: &'static str, times: Vec<f64>, errors: Value| Rec {
+                path: path.to_string(),
+                scene: scene_name.clone(),
+                material: material.name.clone(),
+                pass,
+                reps: times.len(),
+                times,
+                pairs,
+                errors,
+                extra: serde_json::Map::new(),
+            };
+
+            // in-process paths
+            let mut cpu_s: Option<(f64, f64)> = None;
+            for (path, r) in &renderers {
+                let timed = if path == "reference" && opts.ref_reps == 0 {
+                    let img = Image {
+                        width: w,
+                        height: h,
+                        pixels: truth.image.iter().map(|p| p.map(|v| v as f32)).collect(),
+                    };
+                    let e_fwd = errors_f32(&truth, &img, None);
+                    let e_fb = {
+                        let g = &truth.grads;
+                        let f32s = |v: &[[f64; 3]]| -> Vec<f64> {
+                            v.iter().flatten().map(|&x| x as f32 as f64).collect()
+                        };
+                        let (e, n) = (f32s(&g.d_env), f32s(&g.d_normals));
+                        let c: Vec<f64> = g.d_ctrl.iter().map(|&x| x as f32 as f64).collect();
+                        let img = f64s(&img.pixels);
+                        errors(
+                            &truth,
+                            Got {
+                                image: &img,
+                                grads: Some((&e, &n, &c)),
+                            },
+                        )
+                    };
+                    let mut a = rec(path, "fwd", vec![truth.fwd_s], e_fwd);
+                    let mut b = rec(path, "fb", vec![truth.fwd_s + truth.bwd_s], e_fb);
+                    let how = json!(
+                        "the ground-truth run: f64 functions, once, cold; errors: its f32 rounding"
+                    );
+                    a.extra.insert("timing".into(), how.clone());
+                    b.extra.insert("timing".into(), how);
+                    Ok((a, b))
+                } else {
+                    let reps = if path == "reference" {
+                        opts.ref_reps
+                    } else {
+                        opts.reps
+                    };
+                    time_renderer(r, &batch, &ups, reps, path != "reference").map(
+                        |(tf, tb, img, g)| {
+                            (
+                                rec(path, "fwd", tf, errors_f32(&truth, &img, None)),
+                                rec(path, "fb", tb, errors_f32(&truth, &img, Some(&g))),
+                            )
+                        },
+                    )
+                };
+                match timed {
+                    Ok((a, b)) => {
+                        if path == "cpu" {
+                            cpu_s = Some((a.median(), b.median()));
+                        }
+                        print_row(&a);
+                        print_row(&b);
+                        records.push(a);
+                        records.push(b);
+                    }
+                    Err(e) => {
+                        let n = format!("{path} {scene_name} {}: failed: {e}", material.name);
+                        println!("{n}");
+                        notes.push(n);
+                    }
+                }
+            }
+
+            // whole processes and peers share the input files
+            let keep = opts.keep.then(|| {
+                opts.out
+                    .join(format!("inputs/{scene_name}-{}", material.name))
+            });
+            let files = write_inputs(&scene, &upstream, keep);
+            if opts.keep {
+                let f32s = |v: &[[f64; 3]]| -> Vec<[f32; 3]> {
+                    v.iter().map(|p| p.map(|x| x as f32)).collect()
+                };
+                let g = &truth.grads;
+                let (hl, wl) = (env.height, env.width);
+                for (name, wd, ht, v) in [
+                    ("reference_image.npy", w, h, &truth.image),
+                    ("reference_d_env.npy", wl, hl, &g.d_env),
+                    ("reference_d_normals.npy", w, h, &g.d_normals),
+                ] {
+                    write(&files.dir.join(name), &npy::encode_rgb(wd, ht, &f32s(v)));
+                }
+            }
+            let mut cli_s: Option<(f64, f64)> = None;
+            for device in &cli_devices {
+                if cli_mtime() != cli_built {
+                    let n = format!(
+                        "warning: {} was rebuilt during this run; command-line timings from here on \
+                         may be of other code",
+                        env!("CARGO_BIN_EXE_matedit")
+                    );
+                    println!("{n}");
+                    notes.push(n);
+                    cli_built = cli_mtime();
+                }
+                match time_cli(&files, device, opts.threads, opts.cli_reps, &truth) {
+                    Ok((tr, tg, e_fwd, e_fb)) => {
+                        let fb: Vec<f64> = tr.iter().zip(&tg).map(|(a, b)| a + b).collect();
+                        let path = format!("cli-{device}");
+                        let a = rec(&path, "fwd", tr.clone(), e_fwd);
+                        let mut b = rec(&path, "fb", fb, e_fb);
+                        b.extra
+                            .insert("grad_process_median_s".into(), json!(median(&tg)));
+                        if *device == "cpu" {
+                            cli_s = Some((a.median(), b.median()));
+                        }
+                        print_row(&a);
+                        print_row(&b);
+                        records.push(a);
+                        records.push(b);
+                    }
+                    Err(e) => {
+                        let n = format!("cli {device} {scene_name} {}: {e}", material.name);
+                        println!("{n}");
+                        notes.push(n);
+                    }
+                }
+            }
+            if !peers.is_empty() {
+                match run_peers(&files, &peers, opts.peer_reps) {
+                    Err(e) => {
+                        let n = format!("peers {scene_name} {}: {e}", material.name);
+                        println!("{n}");
+                        notes.push(n);
+                    }
+                    Ok(res) => {
+                        for peer in &peers {
+                            let r = &res[peer.as_str()];
+                            if let Some(err) = r.get("error") {
+                                let n = format!(
+                                    "peer {peer} {scene_name} {}: failed: {}",
+                                    material.name,
+                                    err.as_str().unwrap_or("").replace('\n', " | ")
+                                );
+                                println!("{n}");
+                                notes.push(n);
+                                continue;
+                            }
+                            let (e_fwd, e_fb) = peer_errors(&files, peer, &truth);
+                            let path = format!("peer-{peer}");
+                            let mut ratio = json!({
+                                "peer": peer, "scene": scene_name, "material": material.name,
+                            });
+                            for (pass, errs, idx) in [("fwd", e_fwd, 0), ("fb", e_fb, 1)] {
+                                let Some(t) = r[pass].as_f64() else { continue };
+                                let mut x = rec(&path, pass, vec![t], errs);
+                                x.reps = opts.peer_reps;
+                                let pick = |v: (f64, f64)| if idx == 0 { v.0 } else { v.1 };
+                                let vs_cpu = cpu_s.map(|c| t / pick(c));
+                                let vs_cli = cli_s.map(|c| t / pick(c));
+                                x.extra.insert("ratio_vs_cpu".into(), json!(vs_cpu));
+                                x.extra.insert("ratio_vs_cli".into(), json!(vs_cli));
+                                ratio[pass] = json!({
+                                    "peer_s": t, "cpu_s": cpu_s.map(pick), "cli_s": cli_s.map(pick),
+                                    "ratio_vs_cpu": vs_cpu, "ratio_vs_cli": vs_cli,
+                                });
+                                print_row(&x);
+                                records.push(x);
+                            }
+                            ratios.push(ratio);
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    // peers against matedit
+    if !ratios.is_empty() {
+        println!(
+            "\nratios peer s / matedit s (> 1: matedit is faster); cpu = in-process Device::Cpu, \
+             cli = whole `matedit render` (+ `grad`) processes"
+        );
+        println!(
+            "{:<8} {:<10} {:<12} {:>9} {:>9} {:>9} {:>9} | {:>9} {:>9} {:>9} {:>9}",
+            "peer",
+            "scene",
+            "material",
+            "fwd s",
+            "cpu s",
+            "vs cpu",
+            "vs cli",
+            "fb s",
+            "cpu s",
+            "vs cpu",
+            "vs cli"
+        );
+        let f = |v: &Value, d: usize| match v.as_f64() {
+            Some(x) => format!("{x:.d$}"),
+            None => "-".into(),
+        };
+        for r in &ratios {
+            println!(
+                "{:<8} {:<10} {:<12} {:>9} {:>9} {:>9} {:>9} | {:>9} {:>9} {:>9} {:>9}",
+                r["peer"].as_str().unwrap_or(""),
+                r["scene"].as_str().unwrap_or(""),
+                r["material"].as_str().unwrap_or(""),
+                f(&r["fwd"]["peer_s"], 4),
+                f(&r["fwd"]["cpu_s"], 4),
+                f(&r["fwd"]["ratio_vs_cpu"], 3),
+                f(&r["fwd"]["ratio_vs_cli"], 3),
+                f(&r["fb"]["peer_s"], 4),
+                f(&r["fb"]["cpu_s"], 4),
+                f(&r["fb"]["ratio_vs_cpu"], 3),
+                f(&r["fb"]["ratio_vs_cli"], 3),
             );
         }
     }
+
+    let records: Vec<Value> = records.iter().map(Rec::json).collect();
+    let report = json!({
+        "machine": mach,
+        "threads": opts.threads,
+        "describe": describe,
+        "env": env_desc,
+        "materials": opts.materials,
+        "camera": "orthographic",
+        "convention": "equirect",
+        "reps": opts.reps, "ref_reps": opts.ref_reps, "cli_reps": opts.cli_reps,
+        "peer_reps": opts.peer_reps,
+        "pairs": "foreground pixels x texels with d_omega > 0",
+        "errors": "max abs error / max abs value of the f64 reference's output",
+        "records": records,
+        "peer_ratios": ratios,
+        "notes": notes,
+        "seconds_total": started.elapsed().as_secs_f64(),
+    });
+    if let Err(e) = std::fs::create_dir_all(&opts.out) {
+        eprintln!("cannot create {}: {e}", opts.out.display());
+        return;
+    }
+    let (jp, cp) = (opts.out.join("layer.json"), opts.out.join("layer.csv"));
+    write(
+        &jp,
+        (serde_json::to_string_pretty(&report).unwrap_or_default() + "\n").as_bytes(),
+    );
+    write(&cp, csv(&records).as_bytes());
+    println!(
+        "\nwrote {} and {} ({:.0} s in all)",
+        jp.display(),
+        cp.display(),
+        started.elapsed().as_secs_f64()
+    );
 }

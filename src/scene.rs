@@ -55,6 +55,70 @@ impl NormalMap {
         }
     }
 
+    /// A bumpy sphere: a unit sphere of radius 0.95 x half the image's shorter side,
+    /// centred, whose surface is raised by a deterministic height field, a sum of 8
+    /// plane waves with directions, frequencies (2 to 14 cycles across the sphere) and
+    /// phases drawn from `seed`; background outside the disc. Normals are unit length.
+    ///
+    /// With z = sqrt(1 - u^2 - v^2) on the disc and height h(u, v), the surface
+    /// z + h has normal (u - z h_u, v - z h_v, z), normalised: the bumps fade out at the
+    /// silhouette, and every normal faces the camera (n.z > 0). Useful as a test and
+    /// benchmark input with more varied normals than [`NormalMap::sphere`].
+    pub fn bumpy(width: usize, height: usize, seed: u64) -> Self {
+        // splitmix64: a tiny deterministic generator, uniform in [0, 1)
+        let mut state = seed;
+        let mut uniform = move || {
+            state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
+            let mut z = state;
+            z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+            z ^= z >> 31;
+            (z >> 11) as f64 / (1u64 << 53) as f64
+        };
+        const WAVES: usize = 8;
+        let tau = 2.0 * std::f64::consts::PI;
+        // (kx, ky, amplitude, phase) per wave; each wave's slope is 0.25 (amplitude x
+        // wave number), so the summed slope is about 0.5 (RMS)
+        let waves: Vec<[f64; 4]> = (0..WAVES)
+            .map(|_| {
+                let angle = uniform() * tau;
+                let cycles = 1.0 + 6.0 * uniform(); // per unit length: 2 to 14 across the disc
+                let k = cycles * tau;
+                let amp = 0.25 / k;
+                [k * angle.cos(), k * angle.sin(), amp, uniform() * tau]
+            })
+            .collect();
+        let half = width.min(height) as f64 / 2.0;
+        let radius = 0.95 * half;
+        let mut normals = Vec::with_capacity(width * height);
+        for y in 0..height {
+            for x in 0..width {
+                let u = (x as f64 + 0.5 - width as f64 / 2.0) / radius;
+                let v = (height as f64 / 2.0 - (y as f64 + 0.5)) / radius;
+                let r2 = u * u + v * v;
+                if r2 >= 1.0 {
+                    normals.push([0.0; 3]);
+                    continue;
+                }
+                let z = (1.0 - r2).sqrt();
+                let (mut hu, mut hv) = (0.0, 0.0);
+                for &[kx, ky, amp, phase] in &waves {
+                    let c = amp * (kx * u + ky * v + phase).cos();
+                    hu += c * kx;
+                    hv += c * ky;
+                }
+                let n = [u - z * hu, v - z * hv, z];
+                let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+                normals.push(n.map(|c| (c / len) as f32));
+            }
+        }
+        NormalMap {
+            width,
+            height,
+            normals,
+        }
+    }
+
     /// Whether pixel `i` is background (|n| < 1e-6).
     pub fn is_background(&self, i: usize) -> bool {
         let n = self.normals[i];
@@ -252,4 +316,46 @@ pub struct Gradients {
     pub d_normals: Vec<[f32; 3]>,
     /// dLoss/dctrl, the material's flat layout.
     pub d_ctrl: [f32; N_PARAMS],
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bumpy_normals_are_unit_varied_and_deterministic() {
+        let (w, h) = (96, 64);
+        let m = NormalMap::bumpy(w, h, 7);
+        m.validate().unwrap();
+        assert_eq!((m.width, m.height, m.normals.len()), (w, h, w * h));
+        assert_eq!(m, NormalMap::bumpy(w, h, 7));
+        assert_ne!(m, NormalMap::bumpy(w, h, 8));
+
+        // a round disc of radius 0.95 x 32 pixels in the middle, background around it
+        let fg: Vec<usize> = (0..w * h).filter(|&i| !m.is_background(i)).collect();
+        let disc = std::f64::consts::PI * (0.95 * 32.0f64).powi(2);
+        assert!(
+            (fg.len() as f64 - disc).abs() < 0.03 * disc,
+            "{} foreground pixels, disc {disc}",
+            fg.len()
+        );
+        assert!(m.is_background(0) && m.is_background(w / 2) && m.is_background(w * h - 1));
+        assert!(!m.is_background(h / 2 * w + w / 2));
+
+        // unit normals facing the camera, and bumps: they differ from the smooth sphere's
+        let mut max_dev = 0.0f64;
+        for &i in &fg {
+            let n = m.normals[i].map(f64::from);
+            let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+            assert!((len - 1.0).abs() < 1e-6, "pixel {i}: |n| = {len}");
+            assert!(n[2] > 0.0, "pixel {i}: {n:?}");
+            let u = (i % w) as f64 + 0.5 - w as f64 / 2.0;
+            let v = h as f64 / 2.0 - ((i / w) as f64 + 0.5);
+            let (u, v) = (u / (0.95 * 32.0), v / (0.95 * 32.0));
+            let smooth = [u, v, (1.0 - u * u - v * v).max(0.0).sqrt()];
+            let dot: f64 = (0..3).map(|c| n[c] * smooth[c]).sum();
+            max_dev = max_dev.max(dot.clamp(-1.0, 1.0).acos());
+        }
+        assert!(max_dev > 0.3, "largest tilt from the sphere {max_dev} rad");
+    }
 }
