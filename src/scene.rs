@@ -58,7 +58,8 @@ impl NormalMap {
     /// A bumpy sphere: a unit sphere of radius 0.95 x half the image's shorter side,
     /// centred, whose surface is raised by a deterministic height field, a sum of 8
     /// plane waves with directions, frequencies (2 to 14 cycles across the sphere) and
-    /// phases drawn from `seed`; background outside the disc. Normals are unit length.
+    /// phases drawn from `seed`; background outside the disc. Normals are unit length, and
+    /// the loaders' normalisation leaves them unchanged.
     ///
     /// With z = sqrt(1 - u^2 - v^2) on the disc and height h(u, v), the surface
     /// z + h has normal (u - z h_u, v - z h_v, z), normalised: the bumps fade out at the
@@ -107,9 +108,7 @@ impl NormalMap {
                     hu += c * kx;
                     hv += c * ky;
                 }
-                let n = [u - z * hu, v - z * hv, z];
-                let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
-                normals.push(n.map(|c| (c / len) as f32));
+                normals.push(loader_stable_unit([u - z * hu, v - z * hv, z]));
             }
         }
         NormalMap {
@@ -155,6 +154,40 @@ impl NormalMap {
         }
         Ok(())
     }
+}
+
+/// `n` / |n| in f32, chosen among the nearest f32 triples so that normalising it again in
+/// f64 and rounding to f32 (as the file loaders do) gives it back bit for bit: a map of
+/// such normals renders the same after a round trip through a file.
+fn loader_stable_unit(n: [f64; 3]) -> [f32; 3] {
+    let unit = |v: [f64; 3]| {
+        let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        v.map(|c| (c / len) as f32)
+    };
+    let stable = |f: [f32; 3]| unit(f.map(f64::from)) == f;
+    let first = unit(n);
+    if stable(first) {
+        return first;
+    }
+    // one ulp either way per component; the closest stable triple to the exact direction
+    let step = |x: f32, d: i32| match d {
+        -1 => x.next_down(),
+        1 => x.next_up(),
+        _ => x,
+    };
+    let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+    let mut best: Option<([f32; 3], f64)> = None;
+    for d in 0..27 {
+        let ds = [d % 3 - 1, d / 3 % 3 - 1, d / 9 - 1];
+        let f = [0, 1, 2].map(|k| step(first[k], ds[k]));
+        if stable(f) {
+            let dist: f64 = (0..3).map(|k| (f[k] as f64 - n[k] / len).powi(2)).sum();
+            if best.is_none_or(|(_, b)| dist < b) {
+                best = Some((f, dist));
+            }
+        }
+    }
+    best.map_or(first, |(f, _)| f)
 }
 
 /// One scene: what one image is made of.
@@ -348,6 +381,8 @@ mod tests {
             let n = m.normals[i].map(f64::from);
             let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
             assert!((len - 1.0).abs() < 1e-6, "pixel {i}: |n| = {len}");
+            // what the file loaders make of it: the same bits
+            assert_eq!(n.map(|c| (c / len) as f32), m.normals[i], "pixel {i}");
             assert!(n[2] > 0.0, "pixel {i}: {n:?}");
             let u = (i % w) as f64 + 0.5 - w as f64 / 2.0;
             let v = h as f64 / 2.0 - ((i / w) as f64 + 0.5);
@@ -357,5 +392,15 @@ mod tests {
             max_dev = max_dev.max(dot.clamp(-1.0, 1.0).acos());
         }
         assert!(max_dev > 0.3, "largest tilt from the sphere {max_dev} rad");
+
+        // the layer bench's map too: every normal survives the loaders' normalisation
+        let big = NormalMap::bumpy(256, 256, 1);
+        for (i, n) in big.normals.iter().enumerate() {
+            let v = n.map(f64::from);
+            let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+            if len > 0.0 {
+                assert_eq!(v.map(|c| (c / len) as f32), *n, "256 x 256 pixel {i}");
+            }
+        }
     }
 }
