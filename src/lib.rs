@@ -73,7 +73,7 @@ impl std::str::FromStr for Device {
             "cpu" => Ok(Device::Cpu),
             "reference" => Ok(Device::Reference),
             _ => Err(format!(
-                "unknown device '{s}': expected auto, gpu, reference or reference"
+                "unknown device '{s}': expected auto, gpu, cpu or reference"
             )),
         }
     }

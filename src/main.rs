@@ -114,7 +114,7 @@ struct SceneArgs {
     /// Perspective camera with this vertical field of view in degrees [default: orthographic].
     #[arg(long, value_name = "DEG", value_parser = parse_fov)]
     fov: Option<f64>,
-    /// Backend: auto (a hardware GPU if any, else cpu), gpu (any wgpu adapter, lavapipe included), reference (the fast f32 SIMD path) or reference (the f64 reference).
+    /// Backend: auto (a hardware GPU if any, else cpu), gpu (any wgpu adapter, lavapipe included), cpu (the fast f32 SIMD path) or reference (the f64 reference).
     #[arg(long, value_name = "auto|gpu|cpu|reference", default_value = "auto")]
     device: Device,
     /// Worker threads of the CPU paths [default: RAYON_NUM_THREADS, else one per core]. Results do not depend on it.
