@@ -689,7 +689,7 @@ fn auto_without_a_hardware_gpu_runs_the_fast_cpu_path() {
 // ---------------------------------------------------------------- bad input
 
 #[test]
-fn unknown_simd_level() {
+fn unknown_simd_level_and_device() {
     let d = dir();
     let out = d.path().join("x.npy");
     fails_with(
@@ -699,6 +699,10 @@ fn unknown_simd_level() {
         d.path(),
         &["MATEDIT_SIMD", "avx9", "avx512, avx2, neon or scalar"],
     );
+    let res = tiny_render(&out).args(["--device", "tpu"]).output().unwrap();
+    let stderr = String::from_utf8_lossy(&res.stderr);
+    assert_eq!(res.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("expected auto, gpu, cpu or reference"), "{stderr}");
 }
 
 #[test]
