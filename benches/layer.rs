@@ -866,13 +866,6 @@ fn main() {
             }
         }
     }
-    let reference_desc = Renderer::new(Device::Reference).map(|r| r.describe()).ok();
-    if let Some(cpu) = renderers.iter().find(|(p, _)| p == "cpu")
-        && Some(cpu.1.describe()) == reference_desc
-    {
-        println!("note: Device::Cpu describes itself as the reference (it still delegates to it)");
-    }
-
     let (env, env_desc) = load_env(&opts);
     println!("env: {env_desc}; equirect, orthographic camera");
     let materials: Vec<Material> = opts

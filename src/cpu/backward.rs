@@ -113,16 +113,18 @@ impl WithSimd for Backward<'_> {
                             };
                             let a = s.mul_f32s(a2, s.splat_f32s(std::f32::consts::LN_2));
                             let e1 = s.add_f32s(em1, one);
-                            // E x^m1, E m0 x^m1 and E m0 m1 x^(m1 - 1)
+                            // E x^m1, E m0 x^m1 and E m0 m1 x^(m1 - 1) (0 for x^0)
                             let t1 = xb.map_or(e1, |xb| s.mul_f32s(e1, xb));
                             let u = s.mul_f32s(t1, a);
-                            let ead = s.mul_f32s(s.mul_f32s(e1, a), dp);
+                            let ead = xb.map(|_| s.mul_f32s(s.mul_f32s(e1, a), dp));
                             for k in 0..3 {
                                 if lobe.channels & (1 << k) == 0 {
                                     continue;
                                 }
                                 f[k] = s.add_f32s(f[k], em1);
-                                dx[k] = s.add_f32s(dx[k], ead);
+                                if let Some(ead) = ead {
+                                    dx[k] = s.add_f32s(dx[k], ead);
+                                }
                                 let i0 = slot(k);
                                 let d0 = s.mul_f32s(wk[k], t1);
                                 let d1 = s.mul_f32s(wk_ln[k], u);
