@@ -39,7 +39,7 @@ const BACKWARD_CHUNK: usize = 256;
 /// Most chunks of the backward pass, each with its own per-texel sums.
 const MAX_CHUNKS: usize = 16;
 /// Pixels per backward chunk below which fewer chunks are used.
-const MIN_CHUNK_PIXELS: usize = 4096;
+const MIN_CHUNK_PIXELS: usize = 1024;
 /// Memory for the per-chunk texel sums of the backward pass.
 const CHUNK_MEMORY: usize = 256 << 20;
 
