@@ -34,26 +34,49 @@ impl WithSimd for Backward<'_> {
 
     #[inline(always)]
     fn with_simd<S: Simd>(self, s: S) {
+        if self.setup.perspective {
+            self.run::<S, true>(s)
+        } else {
+            self.run::<S, false>(s)
+        }
+    }
+}
+
+impl Backward<'_> {
+    /// The pass for a perspective (`P`) or orthographic camera.
+    #[inline(always)]
+    fn run<S: Simd, const P: bool>(self, s: S) {
         let lanes = S::F32_LANES;
         let cols = Cols::<S>::new(self.table);
         let plan = self.setup.plan;
-        let perspective = self.setup.perspective;
+        let perspective = P;
         let n_blocks = self.table.blocks(lanes);
         let per_group = (GROUP_TEXELS / lanes).max(1);
         let zero = s.splat_f32s(0.0);
         let one = s.splat_f32s(1.0);
         // per block of the group: dL/d_omega (3), then per (k, s, t) one sum (orthographic)
         // or one per spline point j (perspective)
-        let per_t = if perspective { N_CTRL_POINTS } else { 1 };
+        let per_t = if P { N_CTRL_POINTS } else { 1 };
         let stride = 3 + 18 * per_t;
         let mut tacc = vec![zero; per_group * stride];
+        // where each lobe's (k, s) sums start in a block's slice of `tacc`
+        let offsets: Vec<Vec<[usize; 3]>> = plan
+            .groups
+            .iter()
+            .map(|grp| {
+                let lobe_offsets = grp.lobes.iter();
+                lobe_offsets
+                    .map(|l| std::array::from_fn(|k| 3 + (k * 3 + l.slot[k]) * 2 * per_t))
+                    .collect()
+            })
+            .collect();
         for g0 in (0..n_blocks).step_by(per_group) {
             let g1 = (g0 + per_group).min(n_blocks);
             tacc.iter_mut().for_each(|v| *v = zero);
             for ((p, gp), dn_out) in self.px.iter().zip(self.g).zip(self.dn.iter_mut()) {
                 let mut dn = [zero; 3];
                 for b in g0..g1 {
-                    let Some(g) = geo(s, &cols, self.setup, p, b) else {
+                    let Some(g) = geo::<S, P>(s, &cols, p, b) else {
                         continue;
                     };
                     let acc = &mut tacc[(b - g0) * stride..(b - g0 + 1) * stride];
@@ -65,11 +88,11 @@ impl WithSimd for Backward<'_> {
                     let wk_ln = wk.map(|v| s.mul_f32s(v, g.lnx));
                     let mut f = [zero; 3];
                     let mut dx = [zero; 3];
-                    for grp in &plan.groups {
+                    for (grp, offsets) in plan.groups.iter().zip(&offsets) {
                         // x^m1 and m1 x^(m1 - 1) (clamped, 0 at x = 0) of the group
                         let (xb, dp) = match grp.exp_col {
                             Some(col) => {
-                                let m1 = coef(s, &cols, self.setup, &g, b, col);
+                                let m1 = coef::<S, P>(s, &cols, self.setup, &g, b, col);
                                 let t = s.mul_f32s(m1, g.l2);
                                 if underflows(s, t, g.up) {
                                     continue;
@@ -83,18 +106,16 @@ impl WithSimd for Backward<'_> {
                             }
                             None => (None, zero),
                         };
-                        for lobe in &grp.lobes {
-                            let slot = |k: usize| 3 + (k * 3 + lobe.slot[k]) * 2 * per_t;
+                        for (lobe, off) in grp.lobes.iter().zip(offsets) {
                             if lobe.zero_scale {
                                 // E = 1: only dLoss/dm0 = x^m1
                                 let t1 = xb.unwrap_or(one);
                                 for k in 0..3 {
                                     if lobe.channels & (1 << k) != 0 {
-                                        let i0 = slot(k);
+                                        let i0 = off[k];
                                         let d0 = s.mul_f32s(wk[k], t1);
-                                        add_share(
+                                        add_share::<S, P>(
                                             s,
-                                            perspective,
                                             &g.basis,
                                             &mut acc[i0..i0 + per_t],
                                             d0,
@@ -104,7 +125,7 @@ impl WithSimd for Backward<'_> {
                                 continue;
                             }
                             // the scale columns hold a log2(e)
-                            let a2 = coef(s, &cols, self.setup, &g, b, lobe.a_col);
+                            let a2 = coef::<S, P>(s, &cols, self.setup, &g, b, lobe.a_col);
                             let em1 = match xb {
                                 Some(xb) => exp2m1(s, s.mul_f32s(a2, xb)),
                                 // a constant lobe: exp(m0) - 1 depends on the texel alone
@@ -125,13 +146,12 @@ impl WithSimd for Backward<'_> {
                                 if let Some(ead) = ead {
                                     dx[k] = s.add_f32s(dx[k], ead);
                                 }
-                                let i0 = slot(k);
+                                let i0 = off[k];
                                 let d0 = s.mul_f32s(wk[k], t1);
                                 let d1 = s.mul_f32s(wk_ln[k], u);
-                                add_share(s, perspective, &g.basis, &mut acc[i0..i0 + per_t], d0);
-                                add_share(
+                                add_share::<S, P>(s, &g.basis, &mut acc[i0..i0 + per_t], d0);
+                                add_share::<S, P>(
                                     s,
-                                    perspective,
                                     &g.basis,
                                     &mut acc[i0 + per_t..i0 + 2 * per_t],
                                     d1,
@@ -200,14 +220,13 @@ impl WithSimd for Backward<'_> {
 /// Adds a pair's dLoss/dm to the texel sums: as is (orthographic, where the basis is the
 /// texel's and applied at the end) or times each spline basis value (perspective).
 #[inline(always)]
-fn add_share<S: Simd>(
+fn add_share<S: Simd, const P: bool>(
     s: S,
-    perspective: bool,
     basis: &[S::f32s; N_CTRL_POINTS],
     acc: &mut [S::f32s],
     v: S::f32s,
 ) {
-    if perspective {
+    if P {
         for j in 0..N_CTRL_POINTS {
             acc[j] = s.mul_add_e_f32s(v, basis[j], acc[j]);
         }

@@ -24,20 +24,31 @@ impl WithSimd for Forward<'_> {
 
     #[inline(always)]
     fn with_simd<S: Simd>(self, s: S) {
+        if self.setup.perspective {
+            self.run::<S, true>(s)
+        } else {
+            self.run::<S, false>(s)
+        }
+    }
+}
+
+impl Forward<'_> {
+    /// The pass for a perspective (`P`) or orthographic camera.
+    #[inline(always)]
+    fn run<S: Simd, const P: bool>(self, s: S) {
         let cols = Cols::<S>::new(self.table);
         let n_blocks = self.table.blocks(S::F32_LANES);
         let per_group = (GROUP_TEXELS / S::F32_LANES).max(1);
         let zero = s.splat_f32s(0.0);
-        let perspective = self.setup.perspective;
         for g0 in (0..n_blocks).step_by(per_group) {
             let g1 = (g0 + per_group).min(n_blocks);
             for (p, out) in self.px.iter().zip(self.out.iter_mut()) {
                 let mut acc = [zero; 3];
                 for b in g0..g1 {
-                    let Some(g) = geo(s, &cols, self.setup, p, b) else {
+                    let Some(g) = geo::<S, P>(s, &cols, p, b) else {
                         continue;
                     };
-                    let mut f = if perspective {
+                    let mut f = if P {
                         [zero; 3]
                     } else {
                         [cols.fconst[0][b], cols.fconst[1][b], cols.fconst[2][b]]
@@ -45,7 +56,8 @@ impl WithSimd for Forward<'_> {
                     for grp in &self.setup.plan.groups {
                         let xb = match grp.exp_col {
                             Some(col) => {
-                                let t = s.mul_f32s(coef(s, &cols, self.setup, &g, b, col), g.l2);
+                                let t = s
+                                    .mul_f32s(coef::<S, P>(s, &cols, self.setup, &g, b, col), g.l2);
                                 if underflows(s, t, g.up) {
                                     continue;
                                 }
@@ -58,7 +70,7 @@ impl WithSimd for Forward<'_> {
                                 continue;
                             }
                             // a log2(e): the scale columns are stored so
-                            let a2 = coef(s, &cols, self.setup, &g, b, lobe.a_col);
+                            let a2 = coef::<S, P>(s, &cols, self.setup, &g, b, lobe.a_col);
                             let u = xb.map_or(a2, |xb| s.mul_f32s(a2, xb));
                             add_channels(s, lobe.channels, exp2m1(s, u), &mut f);
                         }

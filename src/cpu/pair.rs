@@ -215,9 +215,9 @@ fn basis<S: Simd>(s: S, theta_d: S::f32s) -> [S::f32s; N_CTRL_POINTS] {
 }
 
 /// The geometric terms of pixel `p` against texel block `b`, or None when every texel of
-/// the block is below the pixel's horizon.
+/// the block is below the pixel's horizon. `P`: a perspective camera.
 #[inline(always)]
-pub fn geo<S: Simd>(s: S, cols: &Cols<'_, S>, setup: &Setup, p: &Px, b: usize) -> Option<Geo<S>> {
+pub fn geo<S: Simd, const P: bool>(s: S, cols: &Cols<'_, S>, p: &Px, b: usize) -> Option<Geo<S>> {
     let n = p.n.map(|v| s.splat_f32s(v));
     let w = [cols.w[0][b], cols.w[1][b], cols.w[2][b]];
     let c = dot3(s, &n, &w);
@@ -227,7 +227,7 @@ pub fn geo<S: Simd>(s: S, cols: &Cols<'_, S>, setup: &Setup, p: &Px, b: usize) -
         return None;
     }
     let c = s.select_f32s(up, c, zero);
-    let (h, d_pad, basis_v) = if setup.perspective {
+    let (h, d_pad, basis_v) = if P {
         let wp = p.wp.map(|v| s.splat_f32s(v));
         let sum = [0, 1, 2].map(|a| s.add_f32s(w[a], wp[a]));
         let dif = [0, 1, 2].map(|a| s.sub_f32s(w[a], wp[a]));
@@ -275,7 +275,7 @@ pub fn geo<S: Simd>(s: S, cols: &Cols<'_, S>, setup: &Setup, p: &Px, b: usize) -
 /// Coefficient column `col` (index (k * 3 + s) * 2 + t) at this pair: from the table for
 /// orthographic cameras, from the pair's spline basis for perspective ones.
 #[inline(always)]
-pub fn coef<S: Simd>(
+pub fn coef<S: Simd, const P: bool>(
     s: S,
     cols: &Cols<'_, S>,
     setup: &Setup,
@@ -283,7 +283,7 @@ pub fn coef<S: Simd>(
     b: usize,
     col: usize,
 ) -> S::f32s {
-    if setup.perspective {
+    if P {
         let c = &setup.ctrl[col * N_CTRL_POINTS..(col + 1) * N_CTRL_POINTS];
         let mut v = s.mul_f32s(g.basis[0], s.splat_f32s(c[0]));
         for j in 1..N_CTRL_POINTS {
