@@ -205,11 +205,11 @@ fn sharp_lobes_stay_within_tolerance() {
 #[test]
 fn deterministic_across_threads_and_runs() {
     let mut rng = Rng::new(19);
-    // enough pixels for several backward chunks
+    // enough pixels (8,229 in the foreground) for three backward chunks
     let s = random_scene(
         &mut rng,
-        48,
-        50,
+        96,
+        100,
         16,
         32,
         Convention::Equirect,
@@ -218,6 +218,7 @@ fn deterministic_across_threads_and_runs() {
     let batch = Batch::single(s).unwrap();
     let up = upstream_for(&batch, 5).remove(0).pixels;
     let prep = Prepared::new(&batch.scenes()[0]);
+    assert!(prep.pixels.len() > 2 * 4096, "{} pixels", prep.pixels.len());
     let cpu = FastCpu::best();
     let run = |threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new()
