@@ -699,10 +699,16 @@ fn unknown_simd_level_and_device() {
         d.path(),
         &["MATEDIT_SIMD", "avx9", "avx512, avx2, neon or scalar"],
     );
-    let res = tiny_render(&out).args(["--device", "tpu"]).output().unwrap();
+    let res = tiny_render(&out)
+        .args(["--device", "tpu"])
+        .output()
+        .unwrap();
     let stderr = String::from_utf8_lossy(&res.stderr);
     assert_eq!(res.status.code(), Some(2), "{stderr}");
-    assert!(stderr.contains("expected auto, gpu, cpu or reference"), "{stderr}");
+    assert!(
+        stderr.contains("expected auto, gpu, cpu or reference"),
+        "{stderr}"
+    );
 }
 
 #[test]
