@@ -345,16 +345,7 @@ impl Backend for FastCpu {
     }
 
     fn render(&self, batch: &Batch) -> Result<Vec<Image>> {
-        let (w, h) = batch.image_size();
-        Ok(batch
-            .scenes()
-            .iter()
-            .map(|s| Image {
-                width: w,
-                height: h,
-                pixels: self.forward(&Prepared::new(s)),
-            })
-            .collect())
+        Ok(batch.images(|s| self.forward(&Prepared::new(s))))
     }
 
     fn backward(&self, batch: &Batch, upstream: &[Image]) -> Result<Vec<Gradients>> {

@@ -62,16 +62,7 @@ impl Backend for Reference {
     }
 
     fn render(&self, batch: &Batch) -> Result<Vec<Image>> {
-        let (w, h) = batch.image_size();
-        Ok(batch
-            .scenes()
-            .iter()
-            .map(|s| Image {
-                width: w,
-                height: h,
-                pixels: to_f32(&forward(&Prepared::new(s))),
-            })
-            .collect())
+        Ok(batch.images(|s| to_f32(&forward(&Prepared::new(s)))))
     }
 
     fn backward(&self, batch: &Batch, upstream: &[Image]) -> Result<Vec<Gradients>> {
