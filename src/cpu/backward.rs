@@ -114,12 +114,7 @@ impl Backward<'_> {
                                     if lobe.channels & (1 << k) != 0 {
                                         let i0 = off[k];
                                         let d0 = s.mul_f32s(wk[k], t1);
-                                        add_share::<S, P>(
-                                            s,
-                                            &g.basis,
-                                            &mut acc[i0..i0 + per_t],
-                                            d0,
-                                        );
+                                        add_share::<S, P>(s, &g.basis, acc, i0, d0);
                                     }
                                 }
                                 continue;
@@ -149,13 +144,8 @@ impl Backward<'_> {
                                 let i0 = off[k];
                                 let d0 = s.mul_f32s(wk[k], t1);
                                 let d1 = s.mul_f32s(wk_ln[k], u);
-                                add_share::<S, P>(s, &g.basis, &mut acc[i0..i0 + per_t], d0);
-                                add_share::<S, P>(
-                                    s,
-                                    &g.basis,
-                                    &mut acc[i0 + per_t..i0 + 2 * per_t],
-                                    d1,
-                                );
+                                add_share::<S, P>(s, &g.basis, acc, i0, d0);
+                                add_share::<S, P>(s, &g.basis, acc, i0 + per_t, d1);
                             }
                         }
                     }
@@ -224,13 +214,14 @@ fn add_share<S: Simd, const P: bool>(
     s: S,
     basis: &[S::f32s; N_CTRL_POINTS],
     acc: &mut [S::f32s],
+    at: usize,
     v: S::f32s,
 ) {
     if P {
-        for j in 0..N_CTRL_POINTS {
-            acc[j] = s.mul_add_e_f32s(v, basis[j], acc[j]);
+        for (j, bj) in basis.iter().enumerate() {
+            acc[at + j] = s.mul_add_e_f32s(v, *bj, acc[at + j]);
         }
     } else {
-        acc[0] = s.add_f32s(acc[0], v);
+        acc[at] = s.add_f32s(acc[at], v);
     }
 }
