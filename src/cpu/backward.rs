@@ -70,6 +70,19 @@ impl Backward<'_> {
                     .collect()
             })
             .collect();
+        // orthographic: each lobe's scale column, resolved once
+        let no_col: &[S::f32s] = &[];
+        let a_cols: Vec<Vec<&[S::f32s]>> = plan
+            .groups
+            .iter()
+            .map(|grp| {
+                let col = |c: usize| cols.coef.get(c).copied().unwrap_or(no_col);
+                grp.lobes
+                    .iter()
+                    .map(|l| if P { no_col } else { col(l.a_col) })
+                    .collect()
+            })
+            .collect();
         for g0 in (0..n_blocks).step_by(per_group) {
             let g1 = (g0 + per_group).min(n_blocks);
             tacc.iter_mut().for_each(|v| *v = zero);
@@ -88,7 +101,7 @@ impl Backward<'_> {
                     let wk_ln = wk.map(|v| s.mul_f32s(v, g.lnx));
                     let mut f = [zero; 3];
                     let mut dx = [zero; 3];
-                    for (grp, offsets) in plan.groups.iter().zip(&offsets) {
+                    for ((grp, offsets), a_cols) in plan.groups.iter().zip(&offsets).zip(&a_cols) {
                         // x^m1 and m1 x^(m1 - 1) (clamped, 0 at x = 0) of the group
                         let (xb, dp) = match grp.exp_col {
                             Some(col) => {
@@ -106,7 +119,7 @@ impl Backward<'_> {
                             }
                             None => (None, zero),
                         };
-                        for (lobe, off) in grp.lobes.iter().zip(offsets) {
+                        for ((lobe, off), a_col) in grp.lobes.iter().zip(offsets).zip(a_cols) {
                             if lobe.zero_scale {
                                 // E = 1: only dLoss/dm0 = x^m1
                                 let t1 = xb.unwrap_or(one);
@@ -120,7 +133,11 @@ impl Backward<'_> {
                                 continue;
                             }
                             // the scale columns hold a log2(e)
-                            let a2 = coef::<S, P>(s, &cols, self.setup, &g, b, lobe.a_col);
+                            let a2 = if P {
+                                coef::<S, P>(s, &cols, self.setup, &g, b, lobe.a_col)
+                            } else {
+                                a_col[b]
+                            };
                             let em1 = match xb {
                                 Some(xb) => exp2m1(s, s.mul_f32s(a2, xb)),
                                 // a constant lobe: exp(m0) - 1 depends on the texel alone
