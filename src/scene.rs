@@ -289,6 +289,23 @@ impl Batch {
         self.scenes.iter().map(image).collect()
     }
 
+    /// One set of gradients per scene, each from `grads` (a scene and its upstream image),
+    /// after checking `upstream`: how a backend that works scene by scene answers
+    /// [`crate::Backend::backward`].
+    pub fn gradients(
+        &self,
+        upstream: &[Image],
+        grads: impl Fn(&Scene, &Image) -> Gradients,
+    ) -> Result<Vec<Gradients>> {
+        self.check_upstream(upstream)?;
+        Ok(self
+            .scenes
+            .iter()
+            .zip(upstream)
+            .map(|(s, u)| grads(s, u))
+            .collect())
+    }
+
     /// Checks that `upstream` holds one image per scene of the batch's image size, all finite.
     pub fn check_upstream(&self, upstream: &[Image]) -> Result<()> {
         if upstream.len() != self.scenes.len() {

@@ -49,7 +49,6 @@ impl Backward<'_> {
         let lanes = S::F32_LANES;
         let cols = Cols::<S>::new(self.table);
         let plan = self.setup.plan;
-        let perspective = P;
         let n_blocks = self.table.blocks(lanes);
         let per_group = (GROUP_TEXELS / lanes).max(1);
         let zero = s.splat_f32s(0.0);
@@ -141,7 +140,7 @@ impl Backward<'_> {
                             let em1 = match xb {
                                 Some(xb) => exp2m1(s, s.mul_f32s(a2, xb)),
                                 // a constant lobe: exp(m0) - 1 depends on the texel alone
-                                None if !perspective => cols.em1[lobe.a_col][b],
+                                None if !P => cols.em1[lobe.a_col][b],
                                 None => exp2m1(s, a2),
                             };
                             let a = s.mul_f32s(a2, s.splat_f32s(std::f32::consts::LN_2));
@@ -199,13 +198,13 @@ impl Backward<'_> {
                     for q in 0..3 {
                         t[q] += vals[q * lanes + lane] as f64;
                     }
-                    if !perspective {
+                    if !P {
                         for q in 3..TEXEL_SUMS {
                             t[q] += vals[q * lanes + lane] as f64;
                         }
                     }
                 }
-                if perspective {
+                if P {
                     for k in 0..3 {
                         for sl in 0..3 {
                             for t in 0..2 {

@@ -66,7 +66,7 @@ pub const EXP2M1_MAX_REL: f64 = 2e-7;
 pub const LN_MAX_REL: f64 = 3e-7;
 
 #[inline(always)]
-fn horner<S: Simd, const N: usize>(s: S, x: S::f32s, c: &[f32; N]) -> S::f32s {
+pub(super) fn horner<S: Simd, const N: usize>(s: S, x: S::f32s, c: &[f32; N]) -> S::f32s {
     let mut p = s.splat_f32s(c[N - 1]);
     for i in (0..N - 1).rev() {
         p = s.mul_add_e_f32s(p, x, s.splat_f32s(c[i]));
@@ -176,7 +176,7 @@ fn ln_finish<S: Simd>(s: S, ef: S::f32s, m: S::f32s, d: Option<S::f32s>) -> S::f
     let mut f = s.sub_f32s(m, s.splat_f32s(1.0));
     if let Some(d) = d {
         let near_one = s.equal_f32s(ef, s.splat_f32s(0.0));
-        f = s.select_f32s(near_one, s.neg_f32s_(d), f);
+        f = s.select_f32s(near_one, s.neg_f32s(d), f);
     }
     s.mul_add_e_f32s(ef, s.splat_f32s(LN2), ln1p_reduced(s, f))
 }
@@ -257,14 +257,6 @@ mod v4 {
         (lanes::<S>(e), lanes::<S>(m))
     }
 }
-
-/// Negation, which pulp's `Simd` spells through the sign bit.
-trait NegF32s: Simd {
-    fn neg_f32s_(self, a: Self::f32s) -> Self::f32s {
-        self.xor_f32s(a, self.splat_f32s(-0.0))
-    }
-}
-impl<S: Simd> NegF32s for S {}
 
 #[cfg(test)]
 mod tests {

@@ -349,12 +349,8 @@ impl Backend for FastCpu {
     }
 
     fn backward(&self, batch: &Batch, upstream: &[Image]) -> Result<Vec<Gradients>> {
-        batch.check_upstream(upstream)?;
-        Ok(batch
-            .scenes()
-            .iter()
-            .zip(upstream)
-            .map(|(s, u)| FastCpu::backward(self, &Prepared::new(s), &u.pixels))
-            .collect())
+        batch.gradients(upstream, |s, u| {
+            FastCpu::backward(self, &Prepared::new(s), &u.pixels)
+        })
     }
 }

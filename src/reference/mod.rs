@@ -66,20 +66,14 @@ impl Backend for Reference {
     }
 
     fn backward(&self, batch: &Batch, upstream: &[Image]) -> Result<Vec<Gradients>> {
-        batch.check_upstream(upstream)?;
-        Ok(batch
-            .scenes()
-            .iter()
-            .zip(upstream)
-            .map(|(s, u)| {
-                let g: Vec<[f64; 3]> = u.pixels.iter().map(|p| p.map(f64::from)).collect();
-                let r = backward(&Prepared::new(s), &g);
-                Gradients {
-                    d_env: to_f32(&r.d_env),
-                    d_normals: to_f32(&r.d_normals),
-                    d_ctrl: r.d_ctrl.map(|x| x as f32),
-                }
-            })
-            .collect())
+        batch.gradients(upstream, |s, u| {
+            let g: Vec<[f64; 3]> = u.pixels.iter().map(|p| p.map(f64::from)).collect();
+            let r = backward(&Prepared::new(s), &g);
+            Gradients {
+                d_env: to_f32(&r.d_env),
+                d_normals: to_f32(&r.d_normals),
+                d_ctrl: r.d_ctrl.map(|x| x as f32),
+            }
+        })
     }
 }
