@@ -5,7 +5,7 @@
 
 use pulp::Simd;
 
-use super::math::{horner, ln_1m};
+use super::math::ln_1m;
 use super::table::{LobePlan, Px, TexelTable};
 
 use crate::prepare::HALF_VECTOR_EPS;
@@ -120,7 +120,12 @@ fn atan2_pos<S: Simd>(s: S, y: S::f32s, x: S::f32s) -> S::f32s {
     let swap = s.greater_than_f32s(y, x);
     let hi = s.max_f32s(s.max_f32s(y, x), s.splat_f32s(1e-30));
     let t = s.div_f32s(s.min_f32s(y, x), hi);
-    let a = s.mul_f32s(horner(s, s.mul_f32s(t, t), &ATAN_P), t);
+    let t2 = s.mul_f32s(t, t);
+    let mut p = s.splat_f32s(ATAN_P[7]);
+    for i in (0..7).rev() {
+        p = s.mul_add_e_f32s(p, t2, s.splat_f32s(ATAN_P[i]));
+    }
+    let a = s.mul_f32s(p, t);
     s.select_f32s(
         swap,
         s.sub_f32s(s.splat_f32s(std::f32::consts::FRAC_PI_2), a),
@@ -152,20 +157,21 @@ fn basis<S: Simd>(s: S, theta_d: S::f32s) -> [S::f32s; N_CTRL_POINTS] {
     };
     let (s0, s1, s2) = (in_span(0.0, 1.0), in_span(1.0, 2.0), in_span(2.0, 3.0));
     let s3 = s.greater_than_or_equal_f32s(tau, s.splat_f32s(3.0));
-    // the clamped ends: B_0 = (1 - u)^2 on the first span; B_1 = u (4 - 3u) / 2 on it and
-    // (2 - u)^2 / 2 on the next, with u = tau (B_0, B_1) or u = 4 - tau (B_5, B_4)
-    let ends = |u: S::f32s, first, second| {
-        let edge = s.select_f32s(first, sq(s.sub_f32s(one, u)), zero);
-        let next_rise = s.mul_f32s(
-            s.mul_f32s(half, u),
-            s.mul_add_e_f32s(s.splat_f32s(-3.0), u, s.splat_f32s(4.0)),
-        );
-        let next_fall = s.mul_f32s(half, sq(s.sub_f32s(s.splat_f32s(2.0), u)));
-        let next = s.select_f32s(first, next_rise, s.select_f32s(second, next_fall, zero));
-        (edge, next)
-    };
-    let (b0, b1) = ends(tau, s0, s1);
-    let (b5, b4) = ends(s.sub_f32s(s.splat_f32s(4.0), tau), s3, s2);
+    // B_0: (1 - tau)^2 on [0, 1)
+    let b0 = s.select_f32s(s0, sq(s.sub_f32s(one, tau)), zero);
+    // B_1: tau (4 - 3 tau) / 2 on [0, 1), (2 - tau)^2 / 2 on [1, 2)
+    let b1 = s.select_f32s(
+        s0,
+        s.mul_f32s(
+            s.mul_f32s(half, tau),
+            s.mul_add_e_f32s(s.splat_f32s(-3.0), tau, s.splat_f32s(4.0)),
+        ),
+        s.select_f32s(
+            s1,
+            s.mul_f32s(half, sq(s.sub_f32s(s.splat_f32s(2.0), tau))),
+            zero,
+        ),
+    );
     // uniform quadratic pieces for u = tau - start in [0, 1): u^2/2, 1/2 + u - u^2, (1-u)^2/2
     let rise = |u: S::f32s| s.mul_f32s(half, sq(u));
     let mid = |u: S::f32s| s.sub_f32s(s.add_f32s(half, u), sq(u));
@@ -190,6 +196,21 @@ fn basis<S: Simd>(s: S, theta_d: S::f32s) -> [S::f32s; N_CTRL_POINTS] {
             s.select_f32s(s3, fall(s.sub_f32s(tau, s.splat_f32s(3.0))), zero),
         ),
     );
+    // B_4 and B_5 mirror B_1 and B_0 with sigma = 4 - tau
+    let sigma = s.sub_f32s(s.splat_f32s(4.0), tau);
+    let b4 = s.select_f32s(
+        s3,
+        s.mul_f32s(
+            s.mul_f32s(half, sigma),
+            s.mul_add_e_f32s(s.splat_f32s(-3.0), sigma, s.splat_f32s(4.0)),
+        ),
+        s.select_f32s(
+            s2,
+            s.mul_f32s(half, sq(s.sub_f32s(s.splat_f32s(2.0), sigma))),
+            zero,
+        ),
+    );
+    let b5 = s.select_f32s(s3, sq(s.sub_f32s(one, sigma)), zero);
     [b0, b1, b2, b3, b4, b5]
 }
 
