@@ -34,6 +34,7 @@ pub mod envmap;
 pub mod error;
 pub mod gpu;
 pub mod io;
+pub mod lod;
 pub mod material;
 pub mod prepare;
 pub mod presets;
@@ -44,6 +45,7 @@ pub mod spline;
 pub use camera::Camera;
 pub use envmap::{Convention, EnvMap};
 pub use error::{Error, Result};
+use prepare::Prepared;
 pub use material::{Material, N_PARAMS};
 pub use scene::{Batch, Gradients, Image, NormalMap, Scene};
 
@@ -79,14 +81,43 @@ impl std::str::FromStr for Device {
     }
 }
 
-/// A backend: something that runs the layer's forward and backward passes on a batch.
+/// A backend: something that runs the layer's forward and backward passes.
+///
+/// A backend works on [`prepare::Prepared`] scenes: the levels of detail in [`lod`] hand
+/// it reduced scenes (a downsampled map, a table's nodes as pixels), so every backend runs
+/// every approximation.
 pub trait Backend {
     /// A one-line description: which backend and adapter.
     fn describe(&self) -> String;
-    /// One image per scene.
-    fn render(&self, batch: &Batch) -> Result<Vec<Image>>;
-    /// One set of gradients per scene, for upstream dLoss/dImage `upstream` (one image per scene).
-    fn backward(&self, batch: &Batch, upstream: &[Image]) -> Result<Vec<Gradients>>;
+    /// One image per prepared scene (`width` x `height`, 0 off its pixels).
+    fn render_prepared(&self, preps: &[Prepared]) -> Result<Vec<Image>>;
+    /// One set of gradients per prepared scene, for upstream dLoss/dImage `upstream` (one
+    /// `width` x `height` image per scene); dLoss/dL in its `env_height` x `env_width` grid.
+    fn backward_prepared(&self, preps: &[Prepared], upstream: &[Image]) -> Result<Vec<Gradients>>;
+    /// One image per scene. By default scene by scene, so that one scene's preparation is
+    /// in memory at a time.
+    fn render(&self, batch: &Batch) -> Result<Vec<Image>> {
+        batch
+            .scenes()
+            .iter()
+            .map(|s| Ok(self.render_prepared(&[Prepared::new(s)])?.remove(0)))
+            .collect()
+    }
+    /// One set of gradients per scene, for upstream dLoss/dImage `upstream` (one image per
+    /// scene).
+    fn backward(&self, batch: &Batch, upstream: &[Image]) -> Result<Vec<Gradients>> {
+        batch.check_upstream(upstream)?;
+        batch
+            .scenes()
+            .iter()
+            .zip(upstream)
+            .map(|(s, u)| {
+                Ok(self
+                    .backward_prepared(&[Prepared::new(s)], std::slice::from_ref(u))?
+                    .remove(0))
+            })
+            .collect()
+    }
 }
 
 /// Renders and differentiates batches on one backend.

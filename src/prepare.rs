@@ -39,6 +39,19 @@ pub struct TexelRec {
     pub fconst: [f64; 3],
 }
 
+/// One light direction given to [`Prepared::from_lights`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Light {
+    /// Where its dLoss/dL goes: r * W_L + c in the grid the gradients are laid out in.
+    pub index: usize,
+    /// Unit direction towards the light.
+    pub w: [f64; 3],
+    /// Solid angle.
+    pub d_omega: f64,
+    /// Radiance per channel.
+    pub l: [f64; 3],
+}
+
 /// One foreground pixel.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PixelRec {
@@ -138,6 +151,19 @@ pub fn coefficients(ctrl: &[f64; N_PARAMS], theta_d: f64) -> [f64; N_COEF_VALUES
     m
 }
 
+impl PixelRec {
+    /// Pixel `index` with normal `n` seen from `wp`.
+    pub fn new(index: usize, n: [f64; 3], wp: [f64; 3]) -> Self {
+        let nn_m1 = (n[0] * n[0] - 1.0) + n[1] * n[1] + n[2] * n[2];
+        PixelRec {
+            index,
+            n,
+            wp,
+            nn_m1,
+        }
+    }
+}
+
 impl Prepared {
     /// Prepares a validated scene.
     pub fn new(scene: &Scene) -> Self {
@@ -171,60 +197,87 @@ impl Prepared {
         ctrl: &[f64; N_PARAMS],
         camera: Camera,
     ) -> Self {
-        let ortho_wp = [0.0, 0.0, 1.0];
-        let (active_lobes, const_lobes) = classify_lobes(ctrl);
-        let mut texels = Vec::with_capacity(env_height * env_width);
-        let mut lit = Vec::new();
+        let mut lights = Vec::with_capacity(env_height * env_width);
         for r in 0..env_height {
             for c in 0..env_width {
                 let (w, d_omega) = convention.texel(r, c, env_height, env_width);
-                if d_omega <= 0.0 {
-                    continue;
-                }
                 let index = r * env_width + c;
-                let l = env[index];
-                let ld = [l[0] * d_omega, l[1] * d_omega, l[2] * d_omega];
-                let (h, theta_d) = half_vector(w, ortho_wp);
-                let coef = if camera.is_orthographic() {
-                    coefficients(ctrl, theta_d)
-                } else {
-                    [0.0; N_COEF_VALUES]
-                };
-                let mut fconst = [0.0; 3];
-                if camera.is_orthographic() {
-                    for (k, f) in fconst.iter_mut().enumerate() {
-                        for &s in &const_lobes {
-                            *f += coef[(k * 3 + s) * 2].exp_m1();
-                        }
-                    }
-                }
-                if ld.iter().any(|&v| v != 0.0) {
-                    lit.push(texels.len());
-                }
-                texels.push(TexelRec {
+                lights.push(Light {
                     index,
                     w,
                     d_omega,
-                    ld,
-                    h,
-                    theta_d,
-                    coef,
-                    fconst,
+                    l: env[index],
                 });
             }
         }
-        let mut pixels = Vec::new();
-        for (index, &n) in normals.iter().enumerate() {
-            if dot(n, n) < BACKGROUND_EPS * BACKGROUND_EPS {
+        let pixels = normals
+            .iter()
+            .enumerate()
+            .filter(|(_, n)| dot(**n, **n) >= BACKGROUND_EPS * BACKGROUND_EPS)
+            .map(|(index, &n)| {
+                PixelRec::new(index, n, camera.view_dir(index % width, index / width, width, height))
+            })
+            .collect();
+        Prepared::from_lights(width, height, pixels, env_height, env_width, &lights, ctrl, camera)
+    }
+
+    /// Prepares a scene from its foreground pixels and a list of light directions, each
+    /// with its solid angle and radiance: a lat-long map's texels, or any other set (a
+    /// downsampled map, a map's brightest texels alone). `index` places each light's
+    /// dLoss/dL in an `env_height` x `env_width` grid; lights with `d_omega <= 0` are
+    /// dropped.
+    #[expect(clippy::too_many_arguments, reason = "the parts of a scene")]
+    pub fn from_lights(
+        width: usize,
+        height: usize,
+        pixels: Vec<PixelRec>,
+        env_height: usize,
+        env_width: usize,
+        lights: &[Light],
+        ctrl: &[f64; N_PARAMS],
+        camera: Camera,
+    ) -> Self {
+        let ortho_wp = [0.0, 0.0, 1.0];
+        let (active_lobes, const_lobes) = classify_lobes(ctrl);
+        let mut texels = Vec::with_capacity(lights.len());
+        let mut lit = Vec::new();
+        for &Light {
+            index,
+            w,
+            d_omega,
+            l,
+        } in lights
+        {
+            if d_omega <= 0.0 {
                 continue;
             }
-            let wp = camera.view_dir(index % width, index / width, width, height);
-            let nn_m1 = (n[0] * n[0] - 1.0) + n[1] * n[1] + n[2] * n[2];
-            pixels.push(PixelRec {
+            let ld = [l[0] * d_omega, l[1] * d_omega, l[2] * d_omega];
+            let (h, theta_d) = half_vector(w, ortho_wp);
+            let coef = if camera.is_orthographic() {
+                coefficients(ctrl, theta_d)
+            } else {
+                [0.0; N_COEF_VALUES]
+            };
+            let mut fconst = [0.0; 3];
+            if camera.is_orthographic() {
+                for (k, f) in fconst.iter_mut().enumerate() {
+                    for &s in &const_lobes {
+                        *f += coef[(k * 3 + s) * 2].exp_m1();
+                    }
+                }
+            }
+            if ld.iter().any(|&v| v != 0.0) {
+                lit.push(texels.len());
+            }
+            texels.push(TexelRec {
                 index,
-                n,
-                wp,
-                nn_m1,
+                w,
+                d_omega,
+                ld,
+                h,
+                theta_d,
+                coef,
+                fconst,
             });
         }
         Prepared {

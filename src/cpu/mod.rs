@@ -23,7 +23,7 @@ use rayon::prelude::*;
 use crate::error::{Error, Result};
 use crate::material::N_PARAMS;
 use crate::prepare::Prepared;
-use crate::scene::{Batch, Gradients, Image};
+use crate::scene::{Gradients, Image};
 use crate::spline::spline_basis;
 use crate::{Backend, material::idx};
 
@@ -344,13 +344,22 @@ impl Backend for FastCpu {
         )
     }
 
-    fn render(&self, batch: &Batch) -> Result<Vec<Image>> {
-        Ok(batch.images(|s| self.forward(&Prepared::new(s))))
+    fn render_prepared(&self, preps: &[Prepared]) -> Result<Vec<Image>> {
+        Ok(preps
+            .iter()
+            .map(|p| Image {
+                width: p.width,
+                height: p.height,
+                pixels: self.forward(p),
+            })
+            .collect())
     }
 
-    fn backward(&self, batch: &Batch, upstream: &[Image]) -> Result<Vec<Gradients>> {
-        batch.gradients(upstream, |s, u| {
-            FastCpu::backward(self, &Prepared::new(s), &u.pixels)
-        })
+    fn backward_prepared(&self, preps: &[Prepared], upstream: &[Image]) -> Result<Vec<Gradients>> {
+        Ok(preps
+            .iter()
+            .zip(upstream)
+            .map(|(p, u)| FastCpu::backward(self, p, &u.pixels))
+            .collect())
     }
 }

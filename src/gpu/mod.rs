@@ -105,18 +105,23 @@ impl Backend for GpuRenderer {
         self.ctx.describe()
     }
 
+    fn render_prepared(&self, preps: &[Prepared]) -> Result<Vec<Image>> {
+        self.scoped("forward", || forward::forward(self, preps))
+    }
+
+    fn backward_prepared(&self, preps: &[Prepared], upstream: &[Image]) -> Result<Vec<Gradients>> {
+        self.scoped("backward", || backward::backward(self, preps, upstream))
+    }
+
+    // the whole batch in one submission
     fn render(&self, batch: &Batch) -> Result<Vec<Image>> {
-        self.scoped("forward", || {
-            let preps: Vec<Prepared> = batch.scenes().iter().map(Prepared::new).collect();
-            forward::forward(self, &preps)
-        })
+        let preps: Vec<Prepared> = batch.scenes().iter().map(Prepared::new).collect();
+        self.render_prepared(&preps)
     }
 
     fn backward(&self, batch: &Batch, upstream: &[Image]) -> Result<Vec<Gradients>> {
         batch.check_upstream(upstream)?;
-        self.scoped("backward", || {
-            let preps: Vec<Prepared> = batch.scenes().iter().map(Prepared::new).collect();
-            backward::backward(self, &preps, upstream)
-        })
+        let preps: Vec<Prepared> = batch.scenes().iter().map(Prepared::new).collect();
+        self.backward_prepared(&preps, upstream)
     }
 }

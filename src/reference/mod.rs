@@ -16,7 +16,7 @@ pub use reduce_ctrl::reduce_ctrl;
 
 use crate::material::N_PARAMS;
 use crate::prepare::Prepared;
-use crate::scene::{Batch, Gradients, Image};
+use crate::scene::{Gradients, Image};
 use crate::{Backend, Result};
 
 /// The backward pass in f64.
@@ -61,19 +61,30 @@ impl Backend for Reference {
         )
     }
 
-    fn render(&self, batch: &Batch) -> Result<Vec<Image>> {
-        Ok(batch.images(|s| to_f32(&forward(&Prepared::new(s)))))
+    fn render_prepared(&self, preps: &[Prepared]) -> Result<Vec<Image>> {
+        Ok(preps
+            .iter()
+            .map(|p| Image {
+                width: p.width,
+                height: p.height,
+                pixels: to_f32(&forward(p)),
+            })
+            .collect())
     }
 
-    fn backward(&self, batch: &Batch, upstream: &[Image]) -> Result<Vec<Gradients>> {
-        batch.gradients(upstream, |s, u| {
-            let g: Vec<[f64; 3]> = u.pixels.iter().map(|p| p.map(f64::from)).collect();
-            let r = backward(&Prepared::new(s), &g);
-            Gradients {
-                d_env: to_f32(&r.d_env),
-                d_normals: to_f32(&r.d_normals),
-                d_ctrl: r.d_ctrl.map(|x| x as f32),
-            }
-        })
+    fn backward_prepared(&self, preps: &[Prepared], upstream: &[Image]) -> Result<Vec<Gradients>> {
+        Ok(preps
+            .iter()
+            .zip(upstream)
+            .map(|(p, u)| {
+                let g: Vec<[f64; 3]> = u.pixels.iter().map(|v| v.map(f64::from)).collect();
+                let r = backward(p, &g);
+                Gradients {
+                    d_env: to_f32(&r.d_env),
+                    d_normals: to_f32(&r.d_normals),
+                    d_ctrl: r.d_ctrl.map(|x| x as f32),
+                }
+            })
+            .collect())
     }
 }

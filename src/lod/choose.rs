@@ -1,0 +1,338 @@
+//! The cheapest method for an error budget.
+//!
+//! The estimate runs the layer exactly on a stratified sample of the pixels (1 in 64, at
+//! least 256 and at most 2048 of them) and each candidate method on the same pixels; a
+//! table's grid is the one the whole image gets, and only the nodes the sample's stencils
+//! need are evaluated. A candidate's estimated error is its largest error on the sample,
+//! relative to the sample's largest exact value (for the image and, when an upstream
+//! gradient is given, for each gradient). A candidate is taken when twice its estimate is
+//! within the tolerance: the factor 2 covers the pixels the sample misses.
+//!
+//! Candidates are tried in order of their predicted cost (pairs of a pixel and a lit light
+//! evaluated, counted from the scene), and only while they are cheaper than the best one
+//! found so far, so the estimate costs a few percent of an exact render:
+//! - environment levels (blocks of 8, 4 and 2 texels a side) with 0, 16 or 64 texels
+//!   kept, evaluated per pixel;
+//! - for orthographic cameras, normal tables of growing resolution over the cheapest of
+//!   those lights whose own error is within half the budget. After a table misses, the
+//!   next resolution tried is the one its error predicts (Catmull-Rom's error falls as the
+//!   cube of the node spacing).
+
+use std::collections::HashMap;
+
+use crate::Backend;
+use crate::error::{Error, Result};
+use crate::prepare::Prepared;
+use crate::scene::{Gradients, Image, Scene};
+
+use super::light::lights;
+use super::plan::{Plan, sampled};
+use super::table::{Grid, Table};
+use super::{Method, TABLE_SIZES};
+
+/// A taken candidate's estimate times this is within the tolerance.
+pub const SAFETY: f64 = 2.0;
+/// Pixels sampled: 1 in this many ...
+const SAMPLE_EVERY: usize = 64;
+/// ... at least this many (or all) ...
+const SAMPLE_MIN: usize = 256;
+/// ... and at most this many.
+const SAMPLE_MAX: usize = 2048;
+/// Block sides tried, coarsest first.
+const ENV_FACTORS: [usize; 4] = [8, 4, 2, 1];
+/// Kept texels tried.
+const KEEPS: [usize; 3] = [0, 16, 64];
+/// The cost of interpolating one pixel from a table, in pair evaluations.
+const INTERP_PAIRS: f64 = 4.0;
+/// The cost of a pair in the backward pass, in forward pair evaluations.
+const BACKWARD_PAIR: f64 = 3.0;
+
+/// Estimated errors of a method on a scene: max |x - x_exact| over max |x_exact| on the
+/// sampled pixels, per output.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Estimate {
+    /// The image.
+    pub image: f64,
+    /// dLoss/dL (when an upstream gradient was given).
+    pub d_env: Option<f64>,
+    /// dLoss/dn.
+    pub d_normals: Option<f64>,
+    /// dLoss/dctrl.
+    pub d_ctrl: Option<f64>,
+    /// Pixels in the sample.
+    pub pixels: usize,
+}
+
+impl Estimate {
+    /// The largest of the estimated errors.
+    pub fn max(&self) -> f64 {
+        [self.d_env, self.d_normals, self.d_ctrl]
+            .into_iter()
+            .flatten()
+            .fold(self.image, f64::max)
+    }
+}
+
+/// A method chosen for an error budget.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Choice {
+    /// The method.
+    pub method: Method,
+    /// Its estimated errors (0 for the exact layer).
+    pub estimate: Estimate,
+    /// Its predicted work relative to the exact layer's (pair evaluations).
+    pub cost: f64,
+    /// The tolerance asked for.
+    pub tolerance: f64,
+}
+
+impl std::fmt::Display for Choice {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "method {} (estimated error {:.2e} on {} sampled pixels, tolerance {:.0e}, predicted work {:.1}% of exact)",
+            self.method,
+            self.estimate.max(),
+            self.estimate.pixels,
+            self.tolerance,
+            100.0 * self.cost
+        )
+    }
+}
+
+/// The cheapest method for `scene` whose estimated error is within `tol` (relative); with
+/// `upstream`, every gradient's too.
+pub fn choose(
+    backend: &dyn Backend,
+    scene: &Scene,
+    tol: f64,
+    upstream: Option<&Image>,
+) -> Result<Choice> {
+    let prep = Prepared::new(scene);
+    Ok(choose_plan(backend, &prep, scene, tol, upstream)?.0)
+}
+
+/// max |a - b| over max |b|.
+fn rel(a: &[[f32; 3]], b: &[[f32; 3]]) -> f64 {
+    let (mut diff, mut scale) = (0.0f64, 0.0f64);
+    for (x, y) in a.iter().flatten().zip(b.iter().flatten()) {
+        diff = diff.max((f64::from(*x) - f64::from(*y)).abs());
+        scale = scale.max(f64::from(*y).abs());
+    }
+    ratio(diff, scale)
+}
+
+fn ratio(diff: f64, scale: f64) -> f64 {
+    if diff == 0.0 {
+        0.0
+    } else if scale > 0.0 {
+        diff / scale
+    } else {
+        f64::INFINITY
+    }
+}
+
+fn rel_ctrl(a: &[f32], b: &[f32]) -> f64 {
+    let diff = a
+        .iter()
+        .zip(b)
+        .map(|(x, y)| (f64::from(*x) - f64::from(*y)).abs())
+        .fold(0.0, f64::max);
+    let scale = b.iter().map(|y| f64::from(*y).abs()).fold(0.0, f64::max);
+    ratio(diff, scale)
+}
+
+/// The sample: one pixel in each of `n` equal strata of the pixel list, at a
+/// pseudo-random position in it.
+fn sample_positions(len: usize) -> Vec<usize> {
+    let n = (len / SAMPLE_EVERY).clamp(SAMPLE_MIN, SAMPLE_MAX).min(len);
+    (0..n)
+        .map(|k| {
+            let (lo, hi) = (k * len / n, (k + 1) * len / n);
+            let mut z = (k as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+            z = (z ^ (z >> 31)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+            lo + (z >> 11) as usize % (hi - lo).max(1)
+        })
+        .collect()
+}
+
+/// The sample, its exact results, and the scene the candidates run on.
+struct Trial<'a> {
+    backend: &'a dyn Backend,
+    scene: &'a Scene,
+    full: &'a Prepared,
+    sample: Prepared,
+    upstream: Option<&'a Image>,
+    image: Image,
+    grads: Option<Gradients>,
+}
+
+impl Trial<'_> {
+    fn estimate(&self, method: &Method) -> Result<Estimate> {
+        let plan = Plan::new(
+            &self.sample,
+            &self.scene.env,
+            method,
+            &self.full.pixels,
+            self.upstream.is_some(),
+        );
+        let image = plan.forward(self.backend)?;
+        let mut e = Estimate {
+            image: rel(&image.pixels, &self.image.pixels),
+            pixels: self.sample.pixels.len(),
+            ..Estimate::default()
+        };
+        if let (Some(up), Some(exact)) = (self.upstream, &self.grads) {
+            let g = plan.backward(self.backend, up)?;
+            e.d_env = Some(rel(&g.d_env, &exact.d_env));
+            e.d_normals = Some(rel(&g.d_normals, &exact.d_normals));
+            e.d_ctrl = Some(rel_ctrl(&g.d_ctrl, &exact.d_ctrl));
+        }
+        Ok(e)
+    }
+}
+
+/// The choice and its plan over the whole of `prep` (ready to run).
+pub(crate) fn choose_plan<'a>(
+    backend: &dyn Backend,
+    prep: &'a Prepared,
+    scene: &Scene,
+    tol: f64,
+    upstream: Option<&Image>,
+) -> Result<(Choice, Plan<'a>)> {
+    if !(tol.is_finite() && tol > 0.0) {
+        return Err(Error::Invalid(format!(
+            "tolerance: {tol} is not a positive number"
+        )));
+    }
+    let backward = upstream.is_some();
+    let done = |method: Method, estimate: Estimate, cost: f64| {
+        let plan = Plan::new(prep, &scene.env, &method, &prep.pixels, backward);
+        let choice = Choice {
+            method,
+            estimate,
+            cost,
+            tolerance: tol,
+        };
+        Ok((choice, plan))
+    };
+    let n = prep.pixels.len() as f64;
+    let lit_total = prep.lit.len() as f64;
+    let pair = if backward { BACKWARD_PAIR } else { 1.0 };
+    let exact_cost = n * lit_total * pair;
+    if exact_cost == 0.0 {
+        return done(Method::EXACT, Estimate::default(), 1.0);
+    }
+
+    let positions = sample_positions(prep.pixels.len());
+    let sample = sampled(prep, &positions);
+    let exact = Plan::new(&sample, &scene.env, &Method::EXACT, &prep.pixels, backward);
+    let trial = Trial {
+        backend,
+        scene,
+        full: prep,
+        upstream,
+        image: exact.forward(backend)?,
+        grads: upstream.map(|u| exact.backward(backend, u)).transpose()?,
+        sample,
+    };
+
+    // the lights: lit blocks and lit kept texels per (block side, kept)
+    let env = &scene.env;
+    let mut light_counts = Vec::new();
+    for f in ENV_FACTORS {
+        if f > 1 && f >= env.height.max(env.width) {
+            continue;
+        }
+        for k in KEEPS {
+            let l = lights(env, f, k);
+            let lit = |v: &[crate::prepare::Light]| {
+                v.iter()
+                    .filter(|t| t.d_omega > 0.0 && t.l.iter().any(|&x| x != 0.0))
+                    .count() as f64
+            };
+            light_counts.push(((f, k), lit(&l.blocks), lit(&l.kept)));
+        }
+    }
+    let method = |f: usize, k: usize, table: Option<usize>| Method {
+        env_factor: f,
+        keep: k,
+        table,
+    };
+
+    // per pixel
+    let mut best = (Method::EXACT, Estimate::default(), exact_cost);
+    let mut light_error: HashMap<(usize, usize), f64> = HashMap::new();
+    let mut per_pixel: Vec<((usize, usize), f64)> = light_counts
+        .iter()
+        .filter(|((f, _), _, _)| *f > 1)
+        .map(|&(fk, b, k)| (fk, n * (b + k) * pair))
+        .collect();
+    per_pixel.sort_by(|a, b| a.1.total_cmp(&b.1));
+    for ((f, k), cost) in per_pixel {
+        if cost >= best.2 {
+            break;
+        }
+        let m = method(f, k, None);
+        let e = trial.estimate(&m)?;
+        light_error.insert((f, k), e.image);
+        if e.max() * SAFETY <= tol {
+            best = (m, e, cost);
+            break;
+        }
+    }
+
+    // tables over the cheapest light within half the budget
+    if prep.camera.is_orthographic() {
+        let mut by_blocks = light_counts.clone();
+        by_blocks.sort_by(|a, b| (a.1 + a.2).total_cmp(&(b.1 + b.2)));
+        let mut light = None;
+        for &((f, k), blocks, kept) in &by_blocks {
+            let e = match light_error.get(&(f, k)) {
+                Some(&e) => e,
+                None if f == 1 && k == 0 => 0.0,
+                None => {
+                    let e = trial.estimate(&method(f, k, None))?.image;
+                    light_error.insert((f, k), e);
+                    e
+                }
+            };
+            if e * SAFETY <= tol / 2.0 {
+                light = Some(((f, k), blocks, kept, e));
+                break;
+            }
+        }
+        if let Some(((f, k), blocks, kept, e_light)) = light {
+            let mut i = 0;
+            while i < TABLE_SIZES.len() {
+                let r = TABLE_SIZES[i];
+                let grid = Grid::new(r, &prep.pixels);
+                let (nodes, left) = Table::count(&grid, &prep.pixels);
+                let cost = (nodes as f64 * blocks * (if backward { 4.0 } else { 1.0 })
+                    + left as f64 * blocks
+                    + n * kept)
+                    * pair
+                    + n * INTERP_PAIRS;
+                if cost >= best.2 {
+                    break;
+                }
+                let m = method(f, k, Some(r));
+                let e = trial.estimate(&m)?;
+                if e.max() * SAFETY <= tol {
+                    best = (m, e, cost);
+                    break;
+                }
+                // the resolution this error asks for, if the table's share falls as h^3
+                let share = (e.max() - e_light).max(e.max() / 2.0);
+                let room = (tol / SAFETY - e_light).max(tol / SAFETY / 2.0);
+                let want = r as f64 * (share / room).cbrt();
+                i += 1;
+                while i < TABLE_SIZES.len() && (TABLE_SIZES[i] as f64) < want {
+                    i += 1;
+                }
+            }
+        }
+    }
+    let (m, e, cost) = best;
+    done(m, e, cost / exact_cost)
+}

@@ -1,0 +1,208 @@
+//! Levels of detail: approximations of the layer that skip work a scene does not need,
+//! each with a forward and a backward pass on any [`Backend`], and the choice of the
+//! cheapest one that meets an error budget ([`choose`]).
+//!
+//! A [`Method`] composes three reductions:
+//!
+//! - **Environment levels** (`envF`): the map averaged over F x F texel blocks, each
+//!   block one light with the block's total solid angle, its solid-angle-weighted mean
+//!   radiance and its mean direction. The backward pass is the average's adjoint.
+//! - **Kept texels** (`keepK`): the K texels with the most energy (sum over channels of
+//!   |L| d_omega) are taken out of the blocks and kept at full resolution: a sun next to
+//!   a dim sky keeps its sharp highlight while the sky is averaged.
+//! - **Normal tables** (`tableR`, orthographic cameras): with w_p fixed the image is a
+//!   function of the normal alone. The layer is evaluated at the nodes of an R x R grid
+//!   over the stereographic plane of normals (u, v) = (n.x, n.y) / (1 + n.z), only where
+//!   some pixel's bicubic stencil needs one, and each pixel is interpolated from its 16
+//!   nodes (Catmull-Rom). Kept texels stay exact per pixel; normals that are not unit
+//!   length, or too far behind the sphere, stay exact too. The backward pass scatters the
+//!   upstream gradient onto the nodes (the interpolation's adjoint) and runs the exact
+//!   backward there; dLoss/dn interpolates the nodes' exact 3 x 3 Jacobians dI/dn.
+//!
+//! Errors are relative: max |I - I_exact| over max I_exact (and the same for each
+//! gradient).
+
+mod choose;
+mod light;
+mod table;
+
+pub use choose::{Choice, Estimate, choose};
+
+use crate::error::{Error, Result};
+use crate::prepare::Prepared;
+use crate::scene::{Gradients, Image, Scene};
+use crate::Backend;
+
+/// Largest block side of an environment level.
+pub const MAX_ENV_FACTOR: usize = 64;
+/// Table resolutions [`choose`] tries.
+pub const TABLE_SIZES: [usize; 10] = [16, 24, 32, 48, 64, 96, 128, 192, 256, 384];
+
+/// A level of detail: how the layer is approximated. `Method::EXACT` is the layer itself.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Method {
+    /// Side of the texel blocks the map is averaged over (1: full resolution).
+    pub env_factor: usize,
+    /// How many of the brightest texels stay at full resolution, outside the blocks.
+    pub keep: usize,
+    /// Orthographic cameras: the resolution R of the normal table (None: every pixel is
+    /// evaluated).
+    pub table: Option<usize>,
+}
+
+impl Method {
+    /// The layer, unapproximated.
+    pub const EXACT: Method = Method {
+        env_factor: 1,
+        keep: 0,
+        table: None,
+    };
+
+    /// Whether this is the exact layer.
+    pub fn is_exact(&self) -> bool {
+        // keeping texels at full resolution beside a full-resolution map changes nothing
+        self.table.is_none() && self.env_factor == 1
+    }
+
+    /// Checks the parameters against a scene: a table needs an orthographic camera.
+    pub fn validate(&self, scene: &Scene) -> Result<()> {
+        if self.env_factor == 0 || self.env_factor > MAX_ENV_FACTOR {
+            return Err(Error::Invalid(format!(
+                "method {self}: the block side must be 1 to {MAX_ENV_FACTOR}"
+            )));
+        }
+        if let Some(r) = self.table {
+            if !(4..=4096).contains(&r) {
+                return Err(Error::Invalid(format!(
+                    "method {self}: the table resolution must be 4 to 4096"
+                )));
+            }
+            if !scene.camera.is_orthographic() {
+                return Err(Error::Invalid(format!(
+                    "method {self}: normal tables need an orthographic camera (the view \
+                     direction must be the same for every pixel)"
+                )));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Default for Method {
+    fn default() -> Self {
+        Method::EXACT
+    }
+}
+
+impl std::fmt::Display for Method {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let mut parts = Vec::new();
+        if let Some(r) = self.table {
+            parts.push(format!("table{r}"));
+        }
+        if self.env_factor > 1 {
+            parts.push(format!("env{}", self.env_factor));
+        }
+        if self.keep > 0 {
+            parts.push(format!("keep{}", self.keep));
+        }
+        if parts.is_empty() {
+            f.write_str("exact")
+        } else {
+            f.write_str(&parts.join("+"))
+        }
+    }
+}
+
+impl std::str::FromStr for Method {
+    type Err = String;
+    /// "exact", or '+'-joined parts: `envF` (F = 1 to 64), `keepK`, `tableR`; e.g.
+    /// "table96+env2+keep16".
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        let bad = || {
+            format!(
+                "unknown method '{s}': expected 'exact' or parts joined by '+': envF (blocks of \
+                 F x F texels), keepK (the K brightest texels kept), tableR (an R x R normal \
+                 table), e.g. table96+env2+keep16"
+            )
+        };
+        let mut m = Method::EXACT;
+        if s == "exact" {
+            return Ok(m);
+        }
+        let (mut env, mut keep, mut table) = (false, false, false);
+        for part in s.split('+') {
+            let num = |prefix: &str| -> Option<usize> { part.strip_prefix(prefix)?.parse().ok() };
+            if let (Some(f), false) = (num("env"), env) {
+                env = true;
+                m.env_factor = f;
+            } else if let (Some(k), false) = (num("keep"), keep) {
+                keep = true;
+                m.keep = k;
+            } else if let (Some(r), false) = (num("table"), table) {
+                table = true;
+                m.table = Some(r);
+            } else {
+                return Err(bad());
+            }
+        }
+        if m.env_factor == 0 || m.env_factor > MAX_ENV_FACTOR {
+            return Err(format!("method '{s}': the block side must be 1 to {MAX_ENV_FACTOR}"));
+        }
+        if matches!(m.table, Some(r) if !(4..=4096).contains(&r)) {
+            return Err(format!("method '{s}': the table resolution must be 4 to 4096"));
+        }
+        Ok(m)
+    }
+}
+
+/// The image of `scene` under `method`.
+pub fn render(backend: &dyn Backend, scene: &Scene, method: &Method) -> Result<Image> {
+    method.validate(scene)?;
+    let prep = Prepared::new(scene);
+    Plan::new(&prep, &scene.env, method, &prep.pixels, false).forward(backend)
+}
+
+/// The gradients of `scene` under `method`, for upstream dLoss/dImage `upstream`: the
+/// exact vector-Jacobian product of the approximation.
+pub fn backward(
+    backend: &dyn Backend,
+    scene: &Scene,
+    upstream: &Image,
+    method: &Method,
+) -> Result<Gradients> {
+    method.validate(scene)?;
+    if (upstream.width, upstream.height) != (scene.normals.width, scene.normals.height) {
+        return Err(Error::Invalid(format!(
+            "upstream: {}x{} given for a {}x{} image",
+            upstream.width, upstream.height, scene.normals.width, scene.normals.height
+        )));
+    }
+    let prep = Prepared::new(scene);
+    Plan::new(&prep, &scene.env, method, &prep.pixels, true).backward(backend, upstream)
+}
+
+/// The image of `scene` by the cheapest method whose estimated error is within `tol`, and
+/// that choice.
+pub fn render_within(backend: &dyn Backend, scene: &Scene, tol: f64) -> Result<(Image, Choice)> {
+    let prep = Prepared::new(scene);
+    let (choice, plan) = choose::choose_plan(backend, &prep, scene, tol, None)?;
+    Ok((plan.forward(backend)?, choice))
+}
+
+/// The gradients of `scene` by the cheapest method whose estimated errors (image and
+/// every gradient) are within `tol`, and that choice.
+pub fn backward_within(
+    backend: &dyn Backend,
+    scene: &Scene,
+    upstream: &Image,
+    tol: f64,
+) -> Result<(Gradients, Choice)> {
+    let prep = Prepared::new(scene);
+    let (choice, plan) = choose::choose_plan(backend, &prep, scene, tol, Some(upstream))?;
+    Ok((plan.backward(backend, upstream)?, choice))
+}
+
+pub(crate) use plan::Plan;
+
+mod plan;

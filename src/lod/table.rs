@@ -1,0 +1,265 @@
+//! Normal tables: the layer at the nodes of a grid over the stereographic plane of normals,
+//! interpolated per pixel with Catmull-Rom splines.
+//!
+//! (u, v) = (n.x, n.y) / (1 + n.z) maps the unit sphere (less -z) smoothly onto the plane,
+//! the front hemisphere onto the unit disc, so a function that is smooth in the normal is
+//! smooth on the grid: no seams to interpolate across.
+
+use crate::prepare::{PixelRec, Prepared};
+
+/// Unit normals only: |n|^2 - 1 must be below this for a pixel to be tabled (the layer
+/// uses normals as given, and a table holds unit ones).
+pub(crate) const UNIT_TOLERANCE: f64 = 1e-5;
+/// Normals further behind than n.z = -0.6 (|(u, v)| > 2) are evaluated per pixel.
+const MAX_RADIUS: f64 = 2.0;
+
+/// The grid: R nodes per axis over [-extent, extent], one more on each side for the
+/// stencils at the edges.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Grid {
+    pub r: usize,
+    pub extent: f64,
+}
+
+impl Grid {
+    /// The grid of resolution `r` over the tabled pixels' footprint.
+    pub fn new(r: usize, pixels: &[PixelRec]) -> Self {
+        let extent = pixels
+            .iter()
+            .filter_map(|p| stereo(p))
+            .fold(1e-3f64, |m, (u, v)| m.max(u.abs()).max(v.abs()));
+        Grid { r, extent }
+    }
+
+    /// Nodes per axis, margins included.
+    pub fn side(&self) -> usize {
+        self.r + 2
+    }
+
+    fn spacing(&self) -> f64 {
+        2.0 * self.extent / (self.r - 1) as f64
+    }
+
+    /// The unit normal at node (i, j) (margins included: i = 0 is one step left of
+    /// -extent).
+    pub fn node_normal(&self, i: usize, j: usize) -> [f64; 3] {
+        let h = self.spacing();
+        let u = -self.extent + (i as f64 - 1.0) * h;
+        let v = -self.extent + (j as f64 - 1.0) * h;
+        let q = u * u + v * v;
+        [2.0 * u / (1.0 + q), 2.0 * v / (1.0 + q), (1.0 - q) / (1.0 + q)]
+    }
+
+    /// The first node of the stencil and the weights along each axis at (u, v).
+    fn stencil(&self, u: f64, v: f64) -> ([usize; 2], [[f32; 4]; 2]) {
+        let h = self.spacing();
+        let axis = |x: f64| {
+            let t = (x + self.extent) / h;
+            let c = (t.floor().max(0.0) as usize).min(self.r - 2);
+            (c, catmull_rom(t - c as f64))
+        };
+        let (cu, wu) = axis(u);
+        let (cv, wv) = axis(v);
+        // node c - 1 of the grid is node c of the margined one
+        ([cu, cv], [wu, wv])
+    }
+}
+
+/// The pixel's stereographic coordinates, if it can be tabled.
+fn stereo(p: &PixelRec) -> Option<(f64, f64)> {
+    let n = p.n;
+    if p.nn_m1.abs() > UNIT_TOLERANCE || n[2] <= -0.6 {
+        return None;
+    }
+    let (u, v) = (n[0] / (1.0 + n[2]), n[1] / (1.0 + n[2]));
+    (u * u + v * v <= MAX_RADIUS * MAX_RADIUS).then_some((u, v))
+}
+
+/// Catmull-Rom weights of the 4 nodes around a point a fraction `t` into its cell.
+fn catmull_rom(t: f64) -> [f32; 4] {
+    let (t2, t3) = (t * t, t * t * t);
+    [
+        0.5 * (-t3 + 2.0 * t2 - t),
+        0.5 * (3.0 * t3 - 5.0 * t2 + 2.0),
+        0.5 * (-3.0 * t3 + 4.0 * t2 + t),
+        0.5 * (t3 - t2),
+    ]
+    .map(|w| w as f32)
+}
+
+/// One tabled pixel: where it goes, its 16 nodes (slots in the node list) and weights.
+pub(crate) struct Cell {
+    pub index: usize,
+    pub slots: [u32; 16],
+    pub weights: [f32; 16],
+}
+
+/// A table over some pixels: the nodes they need, and per pixel its stencil.
+pub(crate) struct Table {
+    /// The nodes' unit normals, in grid order.
+    pub normals: Vec<[f64; 3]>,
+    /// The tabled pixels.
+    pub cells: Vec<Cell>,
+    /// Positions (in the pixel list given) of the pixels left to per-pixel evaluation.
+    pub left: Vec<usize>,
+}
+
+impl Table {
+    /// The table of `grid` that `pixels` need.
+    pub fn new(grid: &Grid, pixels: &[PixelRec]) -> Self {
+        let side = grid.side();
+        let mut slot = vec![u32::MAX; side * side];
+        let mut cells = Vec::with_capacity(pixels.len());
+        let mut left = Vec::new();
+        let mut stencils = Vec::with_capacity(pixels.len());
+        for (k, p) in pixels.iter().enumerate() {
+            match stereo(p) {
+                Some((u, v)) if u.abs() <= grid.extent && v.abs() <= grid.extent => {
+                    let ([cu, cv], [wu, wv]) = grid.stencil(u, v);
+                    for b in 0..4 {
+                        for a in 0..4 {
+                            slot[(cv + b) * side + cu + a] = 0;
+                        }
+                    }
+                    stencils.push((p.index, cu, cv, wu, wv));
+                }
+                _ => left.push(k),
+            }
+        }
+        let mut normals = Vec::new();
+        for j in 0..side {
+            for i in 0..side {
+                if slot[j * side + i] != u32::MAX {
+                    slot[j * side + i] = normals.len() as u32;
+                    normals.push(grid.node_normal(i, j));
+                }
+            }
+        }
+        for (index, cu, cv, wu, wv) in stencils {
+            let mut c = Cell {
+                index,
+                slots: [0; 16],
+                weights: [0.0; 16],
+            };
+            for b in 0..4 {
+                for a in 0..4 {
+                    c.slots[b * 4 + a] = slot[(cv + b) * side + cu + a];
+                    c.weights[b * 4 + a] = wu[a] * wv[b];
+                }
+            }
+            cells.push(c);
+        }
+        Table {
+            normals,
+            cells,
+            left,
+        }
+    }
+
+    /// How many nodes the table of `grid` over `pixels` has, and how many of the pixels it
+    /// leaves to per-pixel evaluation.
+    pub fn count(grid: &Grid, pixels: &[PixelRec]) -> (usize, usize) {
+        let side = grid.side();
+        let mut used = vec![false; side * side];
+        let mut left = 0;
+        for p in pixels {
+            match stereo(p) {
+                Some((u, v)) if u.abs() <= grid.extent && v.abs() <= grid.extent => {
+                    let ([cu, cv], _) = grid.stencil(u, v);
+                    for b in 0..4 {
+                        used[(cv + b) * side + cu..(cv + b) * side + cu + 4].fill(true);
+                    }
+                }
+                _ => left += 1,
+            }
+        }
+        (used.iter().filter(|&&u| u).count(), left)
+    }
+
+    /// The nodes as the pixels of a scene with `base`'s lights: one row of `copies` x
+    /// (number of nodes) pixels, the node list repeated.
+    pub fn nodes_scene(&self, base: &Prepared, copies: usize) -> Prepared {
+        let n = self.normals.len();
+        let pixels = (0..copies * n)
+            .map(|i| PixelRec::new(i, self.normals[i % n], [0.0, 0.0, 1.0]))
+            .collect();
+        with_pixels(base, copies * n, 1, pixels)
+    }
+
+    /// Adds the interpolated node values `nodes` to `out` (image layout).
+    pub fn interpolate(&self, nodes: &[[f32; 3]], out: &mut [[f32; 3]]) {
+        for c in &self.cells {
+            let mut acc = [0.0f32; 3];
+            for (&s, &w) in c.slots.iter().zip(&c.weights) {
+                let v = nodes[s as usize];
+                for k in 0..3 {
+                    acc[k] += w * v[k];
+                }
+            }
+            for k in 0..3 {
+                out[c.index][k] += acc[k];
+            }
+        }
+    }
+
+    /// The interpolation's adjoint: per node, the sum of its weights times the upstream
+    /// gradient `g` (image layout) over the pixels that use it.
+    pub fn scatter(&self, g: &[[f32; 3]]) -> Vec<[f32; 3]> {
+        let mut acc = vec![[0.0f64; 3]; self.normals.len()];
+        for c in &self.cells {
+            let gp = g[c.index].map(f64::from);
+            for (&s, &w) in c.slots.iter().zip(&c.weights) {
+                let a = &mut acc[s as usize];
+                for k in 0..3 {
+                    a[k] += f64::from(w) * gp[k];
+                }
+            }
+        }
+        acc.iter().map(|a| a.map(|v| v as f32)).collect()
+    }
+
+    /// dLoss/dn of the tabled pixels, added to `out`: sum over channels of g_c times the
+    /// interpolated dI_c/dn, from `jac`, the nodes' dI_c/dn for c = 0, 1, 2 in turn.
+    pub fn normal_gradients(&self, g: &[[f32; 3]], jac: &[[f32; 3]], out: &mut [[f32; 3]]) {
+        let n = self.normals.len();
+        for c in &self.cells {
+            let gp = g[c.index];
+            let mut acc = [0.0f32; 3];
+            for (&s, &w) in c.slots.iter().zip(&c.weights) {
+                let s = s as usize;
+                for ch in 0..3 {
+                    let j = jac[ch * n + s];
+                    let wg = w * gp[ch];
+                    for a in 0..3 {
+                        acc[a] += wg * j[a];
+                    }
+                }
+            }
+            for a in 0..3 {
+                out[c.index][a] += acc[a];
+            }
+        }
+    }
+}
+
+/// `base` with other pixels (and image size): its lights, material and camera.
+pub(crate) fn with_pixels(
+    base: &Prepared,
+    width: usize,
+    height: usize,
+    pixels: Vec<PixelRec>,
+) -> Prepared {
+    Prepared {
+        width,
+        height,
+        env_height: base.env_height,
+        env_width: base.env_width,
+        camera: base.camera,
+        ctrl: base.ctrl,
+        pixels,
+        texels: base.texels.clone(),
+        lit: base.lit.clone(),
+        active_lobes: base.active_lobes.clone(),
+        const_lobes: base.const_lobes.clone(),
+    }
+}
