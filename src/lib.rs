@@ -45,8 +45,8 @@ pub mod spline;
 pub use camera::Camera;
 pub use envmap::{Convention, EnvMap};
 pub use error::{Error, Result};
-use prepare::Prepared;
 pub use material::{Material, N_PARAMS};
+use prepare::Prepared;
 pub use scene::{Batch, Gradients, Image, NormalMap, Scene};
 
 /// Which backend a [`Renderer`] should use.
@@ -153,6 +153,81 @@ impl Renderer {
         self.backend.describe()
     }
 
+    /// The backend, for the functions of [`lod`].
+    pub fn backend(&self) -> &dyn Backend {
+        self.backend.as_ref()
+    }
+
+    /// One image per scene, under `accuracy`; with a tolerance, each scene's choice too.
+    pub fn render_with(
+        &self,
+        batch: &Batch,
+        accuracy: &Accuracy,
+    ) -> Result<(Vec<Image>, Vec<Option<lod::Choice>>)> {
+        let (images, choices) = match accuracy {
+            Accuracy::Exact => (
+                self.backend.render(batch)?,
+                vec![None; batch.scenes().len()],
+            ),
+            _ => {
+                let mut images = Vec::new();
+                let mut choices = Vec::new();
+                for s in batch.scenes() {
+                    let (image, choice) = match *accuracy {
+                        Accuracy::Method(m) => (lod::render(self.backend(), s, &m)?, None),
+                        _ => {
+                            let (i, c) =
+                                lod::render_within(self.backend(), s, accuracy.tolerance())?;
+                            (i, Some(c))
+                        }
+                    };
+                    images.push(image);
+                    choices.push(choice);
+                }
+                (images, choices)
+            }
+        };
+        for (b, img) in images.iter().enumerate() {
+            check_finite("image", b, img.width, &img.pixels)?;
+        }
+        Ok((images, choices))
+    }
+
+    /// Gradients per scene under `accuracy`; with a tolerance, each scene's choice too.
+    pub fn backward_with(
+        &self,
+        batch: &Batch,
+        upstream: &[Image],
+        accuracy: &Accuracy,
+    ) -> Result<(Vec<Gradients>, Vec<Option<lod::Choice>>)> {
+        batch.check_upstream(upstream)?;
+        let (grads, choices) = match accuracy {
+            Accuracy::Exact => (
+                self.backend.backward(batch, upstream)?,
+                vec![None; batch.scenes().len()],
+            ),
+            _ => {
+                let mut grads = Vec::new();
+                let mut choices = Vec::new();
+                for (s, u) in batch.scenes().iter().zip(upstream) {
+                    let (g, choice) = match *accuracy {
+                        Accuracy::Method(m) => (lod::backward(self.backend(), s, u, &m)?, None),
+                        _ => {
+                            let (g, c) =
+                                lod::backward_within(self.backend(), s, u, accuracy.tolerance())?;
+                            (g, Some(c))
+                        }
+                    };
+                    grads.push(g);
+                    choices.push(choice);
+                }
+                (grads, choices)
+            }
+        };
+        check_gradients(batch, &grads)?;
+        Ok((grads, choices))
+    }
+
     /// One image per scene of the batch.
     ///
     /// Valid inputs keep every value far inside f32 (see docs/CONVENTIONS.md), but an
@@ -169,6 +244,35 @@ impl Renderer {
     pub fn backward(&self, batch: &Batch, upstream: &[Image]) -> Result<Vec<Gradients>> {
         batch.check_upstream(upstream)?;
         let grads = self.backend.backward(batch, upstream)?;
+        check_gradients(batch, &grads)?;
+        Ok(grads)
+    }
+}
+
+/// How exactly to evaluate the layer.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum Accuracy {
+    /// The layer itself.
+    #[default]
+    Exact,
+    /// A given level of detail.
+    Method(lod::Method),
+    /// The cheapest level of detail whose estimated relative error is within this.
+    Tolerance(f64),
+}
+
+impl Accuracy {
+    fn tolerance(&self) -> f64 {
+        match *self {
+            Accuracy::Tolerance(t) => t,
+            _ => 0.0,
+        }
+    }
+}
+
+/// An error naming the first non-finite gradient.
+fn check_gradients(batch: &Batch, grads: &[Gradients]) -> Result<()> {
+    {
         let env_w = batch.scenes()[0].env.width;
         for (b, g) in grads.iter().enumerate() {
             check_finite("d_env", b, env_w, &g.d_env)?;
@@ -179,7 +283,7 @@ impl Renderer {
                 )));
             }
         }
-        Ok(grads)
+        Ok(())
     }
 }
 

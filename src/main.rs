@@ -13,7 +13,7 @@ use std::time::Duration;
 use clap::{Args, Parser, Subcommand};
 use matedit::io::job::{MaterialSource, NormalsSource, Plan, SceneOptions};
 use matedit::io::{self, EnvSize, Format, Preview, Tonemap};
-use matedit::{Convention, Device, Error, Renderer};
+use matedit::{Accuracy, Convention, Device, Error, Renderer, lod};
 
 const TOP_EXAMPLES: &str = "\
 Examples:
@@ -120,6 +120,12 @@ struct SceneArgs {
     /// Worker threads of the CPU paths [default: RAYON_NUM_THREADS, else one per core]. Results do not depend on it.
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
     threads: Option<u16>,
+    /// Approximate: the cheapest level of detail whose estimated relative error (max |I - I_exact| over max I_exact; with `grad`, each gradient's too) is within REL, chosen per scene and printed on stderr [default: exact].
+    #[arg(long, value_name = "REL", value_parser = parse_tolerance, conflicts_with = "method")]
+    tolerance: Option<f64>,
+    /// A level of detail by name: 'exact', or parts joined by '+': envF (the map in F x F blocks), keepK (its K brightest texels kept), tableR (an R x R table of normals; orthographic only), e.g. table128+keep16.
+    #[arg(long, value_name = "METHOD")]
+    method: Option<lod::Method>,
     /// A JSON manifest listing several scenes, rendered in one batch (see docs/FORMATS.md). Options above are defaults for what it leaves out.
     #[arg(long, value_name = "MANIFEST")]
     batch: Option<PathBuf>,
@@ -157,6 +163,15 @@ struct GradArgs {
     upstream: Option<PathBuf>,
 }
 
+fn parse_tolerance(s: &str) -> Result<f64, String> {
+    let v: f64 = s.parse().map_err(|_| format!("'{s}' is not a number"))?;
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(format!("{v} is not a positive number"))
+    }
+}
+
 fn parse_fov(s: &str) -> Result<f64, String> {
     let v: f64 = s.parse().map_err(|_| format!("'{s}' is not a number"))?;
     if v.is_finite() && v > 0.0 && v < 180.0 {
@@ -186,6 +201,14 @@ fn runtime(error: Error) -> Failure {
 }
 
 impl SceneArgs {
+    fn accuracy(&self) -> Accuracy {
+        match (self.tolerance, self.method) {
+            (Some(t), _) => Accuracy::Tolerance(t),
+            (None, Some(m)) => Accuracy::Method(m),
+            (None, None) => Accuracy::Exact,
+        }
+    }
+
     fn options(&self) -> SceneOptions {
         SceneOptions {
             normals: match (&self.normals, self.sphere) {
@@ -274,7 +297,11 @@ fn render(args: &RenderArgs) -> Result<(), Failure> {
         eprintln!("matedit: {n}");
     }
     let renderer = renderer(&args.scene)?;
-    let images = with_progress("rendering", || renderer.render(&loaded.batch))?;
+    let accuracy = args.scene.accuracy();
+    let (images, choices) = with_progress("rendering", || {
+        renderer.render_with(&loaded.batch, &accuracy)
+    })?;
+    report(&accuracy, &choices);
     let preview = Preview {
         exposure: args.exposure,
         tonemap: args.tonemap,
@@ -293,6 +320,22 @@ fn render(args: &RenderArgs) -> Result<(), Failure> {
         );
     }
     Ok(())
+}
+
+/// The level of detail used, on stderr.
+fn report(accuracy: &Accuracy, choices: &[Option<lod::Choice>]) {
+    if let Accuracy::Method(m) = accuracy {
+        eprintln!("matedit: level of detail: method {m}");
+    }
+    for (b, c) in choices.iter().enumerate() {
+        if let Some(c) = c {
+            if choices.len() > 1 {
+                eprintln!("matedit: scene {b}: level of detail: {c}");
+            } else {
+                eprintln!("matedit: level of detail: {c}");
+            }
+        }
+    }
 }
 
 fn check_grad_dir(dir: &Path) -> Result<(), Failure> {
@@ -318,9 +361,11 @@ fn grad(args: &GradArgs) -> Result<(), Failure> {
         eprintln!("matedit: {n}");
     }
     let renderer = renderer(&args.scene)?;
-    let grads = with_progress("differentiating", || {
-        renderer.backward(&loaded.batch, &upstream)
+    let accuracy = args.scene.accuracy();
+    let (grads, choices) = with_progress("differentiating", || {
+        renderer.backward_with(&loaded.batch, &upstream, &accuracy)
     })?;
+    report(&accuracy, &choices);
     let mut staged = Vec::new();
     for ((spec, scene), g) in plan.scenes.iter().zip(loaded.batch.scenes()).zip(&grads) {
         let dir = &spec.output;

@@ -38,10 +38,19 @@ const SAMPLE_EVERY: usize = 64;
 const SAMPLE_MIN: usize = 256;
 /// ... and at most this many.
 const SAMPLE_MAX: usize = 2048;
+/// Tables are tried on every this-many-th pixel of the sample.
+const TABLE_SAMPLE_EVERY: usize = 4;
 /// Block sides tried, coarsest first.
 const ENV_FACTORS: [usize; 4] = [8, 4, 2, 1];
 /// Kept texels tried.
 const KEEPS: [usize; 3] = [0, 16, 64];
+/// Kept texels for the tables, in the order tried.
+const KEEPS_FOR_TABLES: [usize; 3] = [16, 64, 0];
+/// An approximation is taken only if its predicted work is below this share of the exact
+/// layer's.
+const MAX_COST_SHARE: f64 = 0.5;
+/// The first table resolution tried.
+const FIRST_TABLE: usize = 32;
 /// The cost of interpolating one pixel from a table, in pair evaluations.
 const INTERP_PAIRS: f64 = 4.0;
 /// The cost of a pair in the backward pass, in forward pair evaluations.
@@ -156,21 +165,73 @@ fn sample_positions(len: usize) -> Vec<usize> {
         .collect()
 }
 
-/// The sample, its exact results, and the scene the candidates run on.
-struct Trial<'a> {
-    backend: &'a dyn Backend,
-    scene: &'a Scene,
-    full: &'a Prepared,
+/// Sampled pixels and the exact layer's results on them.
+struct Truth {
     sample: Prepared,
-    upstream: Option<&'a Image>,
     image: Image,
     grads: Option<Gradients>,
 }
 
-impl Trial<'_> {
-    fn estimate(&self, method: &Method) -> Result<Estimate> {
+/// The samples, their exact results, and the scene the candidates run on.
+struct Trial<'a> {
+    backend: &'a dyn Backend,
+    scene: &'a Scene,
+    full: &'a Prepared,
+    upstream: Option<&'a Image>,
+    /// For the per-pixel methods.
+    pixels: Truth,
+    /// For the tables, which cost 16 nodes per sampled pixel: a part of the sample.
+    tables: Truth,
+}
+
+impl<'a> Trial<'a> {
+    fn new(
+        backend: &'a dyn Backend,
+        scene: &'a Scene,
+        full: &'a Prepared,
+        upstream: Option<&'a Image>,
+    ) -> Result<Self> {
+        let truth = |sample: Prepared| -> Result<Truth> {
+            let exact = Plan::new(
+                &sample,
+                &scene.env,
+                &Method::EXACT,
+                &full.pixels,
+                upstream.is_some(),
+            );
+            let image = exact.forward(backend)?;
+            let grads = upstream.map(|u| exact.backward(backend, u)).transpose()?;
+            Ok(Truth {
+                sample,
+                image,
+                grads,
+            })
+        };
+        let positions = sample_positions(full.pixels.len());
+        let every: Vec<usize> = positions
+            .iter()
+            .copied()
+            .step_by(TABLE_SAMPLE_EVERY)
+            .collect();
+        Ok(Trial {
+            backend,
+            scene,
+            full,
+            upstream,
+            pixels: truth(sampled(full, &positions))?,
+            tables: truth(sampled(full, &every))?,
+        })
+    }
+
+    /// The estimate of `method`; the gradients' only if the image's is within `tol`.
+    fn estimate(&self, method: &Method, tol: f64) -> Result<Estimate> {
+        let truth = if method.table.is_some() {
+            &self.tables
+        } else {
+            &self.pixels
+        };
         let plan = Plan::new(
-            &self.sample,
+            &truth.sample,
             &self.scene.env,
             method,
             &self.full.pixels,
@@ -178,11 +239,14 @@ impl Trial<'_> {
         );
         let image = plan.forward(self.backend)?;
         let mut e = Estimate {
-            image: rel(&image.pixels, &self.image.pixels),
-            pixels: self.sample.pixels.len(),
+            image: rel(&image.pixels, &truth.image.pixels),
+            pixels: truth.sample.pixels.len(),
             ..Estimate::default()
         };
-        if let (Some(up), Some(exact)) = (self.upstream, &self.grads) {
+        if e.image * SAFETY > tol {
+            return Ok(e);
+        }
+        if let (Some(up), Some(exact)) = (self.upstream, &truth.grads) {
             let g = plan.backward(self.backend, up)?;
             e.d_env = Some(rel(&g.d_env, &exact.d_env));
             e.d_normals = Some(rel(&g.d_normals, &exact.d_normals));
@@ -224,18 +288,7 @@ pub(crate) fn choose_plan<'a>(
         return done(Method::EXACT, Estimate::default(), 1.0);
     }
 
-    let positions = sample_positions(prep.pixels.len());
-    let sample = sampled(prep, &positions);
-    let exact = Plan::new(&sample, &scene.env, &Method::EXACT, &prep.pixels, backward);
-    let trial = Trial {
-        backend,
-        scene,
-        full: prep,
-        upstream,
-        image: exact.forward(backend)?,
-        grads: upstream.map(|u| exact.backward(backend, u)).transpose()?,
-        sample,
-    };
+    let trial = Trial::new(backend, scene, prep, upstream)?;
 
     // the lights: lit blocks and lit kept texels per (block side, kept)
     let env = &scene.env;
@@ -262,6 +315,8 @@ pub(crate) fn choose_plan<'a>(
 
     // per pixel
     let mut best = (Method::EXACT, Estimate::default(), exact_cost);
+    // an approximation must save at least half the work to be worth its estimate
+    let most = exact_cost * MAX_COST_SHARE;
     let mut light_error: HashMap<(usize, usize), f64> = HashMap::new();
     let mut per_pixel: Vec<((usize, usize), f64)> = light_counts
         .iter()
@@ -270,11 +325,11 @@ pub(crate) fn choose_plan<'a>(
         .collect();
     per_pixel.sort_by(|a, b| a.1.total_cmp(&b.1));
     for ((f, k), cost) in per_pixel {
-        if cost >= best.2 {
+        if cost >= best.2.min(most) {
             break;
         }
         let m = method(f, k, None);
-        let e = trial.estimate(&m)?;
+        let e = trial.estimate(&m, tol)?;
         light_error.insert((f, k), e.image);
         if e.max() * SAFETY <= tol {
             best = (m, e, cost);
@@ -282,28 +337,30 @@ pub(crate) fn choose_plan<'a>(
         }
     }
 
-    // tables over the cheapest light within half the budget
+    // tables, over each light whose own error is within half the budget
     if prep.camera.is_orthographic() {
-        let mut by_blocks = light_counts.clone();
-        by_blocks.sort_by(|a, b| (a.1 + a.2).total_cmp(&(b.1 + b.2)));
-        let mut light = None;
-        for &((f, k), blocks, kept) in &by_blocks {
-            let e = match light_error.get(&(f, k)) {
+        let mut table_lights = light_counts.clone();
+        // full resolution before blocks; with texels kept before without: a bright
+        // texel's horizon is a kink in the image as a function of the normal, which a table
+        // cannot interpolate, so a table over the rest of the map is usually the cheaper
+        let keep_rank = |k: usize| KEEPS_FOR_TABLES.iter().position(|&x| x == k);
+        table_lights.sort_by_key(|&((f, k), _, _)| (f, keep_rank(k)));
+        for ((f, k), blocks, kept) in table_lights {
+            let e_light = match light_error.get(&(f, k)) {
                 Some(&e) => e,
-                None if f == 1 && k == 0 => 0.0,
                 None => {
-                    let e = trial.estimate(&method(f, k, None))?.image;
+                    let e = trial.estimate(&method(f, k, None), 0.0)?.image;
                     light_error.insert((f, k), e);
                     e
                 }
             };
-            if e * SAFETY <= tol / 2.0 {
-                light = Some(((f, k), blocks, kept, e));
-                break;
+            if e_light * SAFETY > tol / 2.0 {
+                continue;
             }
-        }
-        if let Some(((f, k), blocks, kept, e_light)) = light {
-            let mut i = 0;
+            let mut i = TABLE_SIZES
+                .iter()
+                .position(|&r| r >= FIRST_TABLE)
+                .unwrap_or(0);
             while i < TABLE_SIZES.len() {
                 let r = TABLE_SIZES[i];
                 let grid = Grid::new(r, &prep.pixels);
@@ -313,11 +370,11 @@ pub(crate) fn choose_plan<'a>(
                     + n * kept)
                     * pair
                     + n * INTERP_PAIRS;
-                if cost >= best.2 {
+                if cost >= best.2.min(most) {
                     break;
                 }
                 let m = method(f, k, Some(r));
-                let e = trial.estimate(&m)?;
+                let e = trial.estimate(&m, tol)?;
                 if e.max() * SAFETY <= tol {
                     best = (m, e, cost);
                     break;

@@ -28,10 +28,10 @@ mod table;
 
 pub use choose::{Choice, Estimate, choose};
 
+use crate::Backend;
 use crate::error::{Error, Result};
 use crate::prepare::Prepared;
 use crate::scene::{Gradients, Image, Scene};
-use crate::Backend;
 
 /// Largest block side of an environment level.
 pub const MAX_ENV_FACTOR: usize = 64;
@@ -147,10 +147,14 @@ impl std::str::FromStr for Method {
             }
         }
         if m.env_factor == 0 || m.env_factor > MAX_ENV_FACTOR {
-            return Err(format!("method '{s}': the block side must be 1 to {MAX_ENV_FACTOR}"));
+            return Err(format!(
+                "method '{s}': the block side must be 1 to {MAX_ENV_FACTOR}"
+            ));
         }
         if matches!(m.table, Some(r) if !(4..=4096).contains(&r)) {
-            return Err(format!("method '{s}': the table resolution must be 4 to 4096"));
+            return Err(format!(
+                "method '{s}': the table resolution must be 4 to 4096"
+            ));
         }
         Ok(m)
     }

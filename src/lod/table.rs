@@ -26,7 +26,7 @@ impl Grid {
     pub fn new(r: usize, pixels: &[PixelRec]) -> Self {
         let extent = pixels
             .iter()
-            .filter_map(|p| stereo(p))
+            .filter_map(stereo)
             .fold(1e-3f64, |m, (u, v)| m.max(u.abs()).max(v.abs()));
         Grid { r, extent }
     }
@@ -47,7 +47,11 @@ impl Grid {
         let u = -self.extent + (i as f64 - 1.0) * h;
         let v = -self.extent + (j as f64 - 1.0) * h;
         let q = u * u + v * v;
-        [2.0 * u / (1.0 + q), 2.0 * v / (1.0 + q), (1.0 - q) / (1.0 + q)]
+        [
+            2.0 * u / (1.0 + q),
+            2.0 * v / (1.0 + q),
+            (1.0 - q) / (1.0 + q),
+        ]
     }
 
     /// The first node of the stencil and the weights along each axis at (u, v).
