@@ -94,6 +94,43 @@ pub trait Backend {
     /// One set of gradients per prepared scene, for upstream dLoss/dImage `upstream` (one
     /// `width` x `height` image per scene); dLoss/dL in its `env_height` x `env_width` grid.
     fn backward_prepared(&self, preps: &[Prepared], upstream: &[Image]) -> Result<Vec<Gradients>>;
+    /// dI^k/dn per pixel of each prepared scene (in `pixels` order), `[k][axis]`: what a
+    /// normal table interpolates for dLoss/dn. By default three backward passes, one per
+    /// channel, over the pixels.
+    fn normal_jacobians(&self, preps: &[Prepared]) -> Result<Vec<Vec<[[f32; 3]; 3]>>> {
+        let mut copies = Vec::with_capacity(preps.len());
+        let mut ups = Vec::with_capacity(preps.len());
+        for p in preps {
+            let n = p.pixels.len();
+            let pixels = (0..3 * n)
+                .map(|i| prepare::PixelRec {
+                    index: i,
+                    ..p.pixels[i % n]
+                })
+                .collect();
+            copies.push(p.with_pixels(3 * n, 1, pixels));
+            let mut up = vec![[0.0f32; 3]; 3 * n];
+            for (i, u) in up.iter_mut().enumerate() {
+                u[i / n.max(1)] = 1.0;
+            }
+            ups.push(Image {
+                width: 3 * n,
+                height: 1,
+                pixels: up,
+            });
+        }
+        let grads = self.backward_prepared(&copies, &ups)?;
+        Ok(grads
+            .iter()
+            .zip(preps)
+            .map(|(g, p)| {
+                let n = p.pixels.len();
+                (0..n)
+                    .map(|i| std::array::from_fn(|k| g.d_normals[k * n + i]))
+                    .collect()
+            })
+            .collect())
+    }
     /// One image per scene. By default scene by scene, so that one scene's preparation is
     /// in memory at a time.
     fn render(&self, batch: &Batch) -> Result<Vec<Image>> {

@@ -215,10 +215,16 @@ impl Prepared {
             .enumerate()
             .filter(|(_, n)| dot(**n, **n) >= BACKGROUND_EPS * BACKGROUND_EPS)
             .map(|(index, &n)| {
-                PixelRec::new(index, n, camera.view_dir(index % width, index / width, width, height))
+                PixelRec::new(
+                    index,
+                    n,
+                    camera.view_dir(index % width, index / width, width, height),
+                )
             })
             .collect();
-        Prepared::from_lights(width, height, pixels, env_height, env_width, &lights, ctrl, camera)
+        Prepared::from_lights(
+            width, height, pixels, env_height, env_width, &lights, ctrl, camera,
+        )
     }
 
     /// Prepares a scene from its foreground pixels and a list of light directions, each
@@ -292,6 +298,23 @@ impl Prepared {
             lit,
             active_lobes,
             const_lobes,
+        }
+    }
+
+    /// This scene's lights, material and camera on other pixels (and image size).
+    pub fn with_pixels(&self, width: usize, height: usize, pixels: Vec<PixelRec>) -> Prepared {
+        Prepared {
+            width,
+            height,
+            env_height: self.env_height,
+            env_width: self.env_width,
+            camera: self.camera,
+            ctrl: self.ctrl,
+            pixels,
+            texels: self.texels.clone(),
+            lit: self.lit.clone(),
+            active_lobes: self.active_lobes.clone(),
+            const_lobes: self.const_lobes.clone(),
         }
     }
 }

@@ -262,3 +262,66 @@ fn constant_light_matches_the_analytic_value() {
     let centre = img[8 * 16 + 8][0] as f64;
     assert!((centre / want - 1.0).abs() < 1e-3, "{centre} vs {want}");
 }
+
+#[test]
+fn normal_jacobians_match_the_reference_backward() {
+    // the fast path's one-pass dI^k/dn against the f64 reference's three backward passes
+    // (the trait's default), on random, preset, perspective and non-unit-normal scenes
+    use matedit::Backend;
+    let mut rng = Rng::new(21);
+    let mut cases = Vec::new();
+    for camera in [
+        Camera::Orthographic,
+        Camera::Perspective { fov_y_deg: 50.0 },
+    ] {
+        cases.push(random_scene(
+            &mut rng,
+            9,
+            8,
+            16,
+            32,
+            Convention::Equirect,
+            camera,
+        ));
+        let mut s = random_scene(&mut rng, 8, 8, 16, 32, Convention::Paper, camera);
+        s.material = matedit::presets::lookup("plastic-red").expect("preset");
+        cases.push(s);
+    }
+    let mut s = random_scene(
+        &mut rng,
+        7,
+        7,
+        16,
+        32,
+        Convention::Equirect,
+        Camera::Orthographic,
+    );
+    s.normals
+        .normals
+        .iter_mut()
+        .for_each(|n| *n = n.map(|c| c * 0.9));
+    cases.push(s);
+    let preps: Vec<Prepared> = cases.iter().map(Prepared::new).collect();
+    let want = reference::Reference.normal_jacobians(&preps).unwrap();
+    for cpu in levels() {
+        let got = Backend::normal_jacobians(&cpu, &preps).unwrap();
+        for (c, (g, w)) in got.iter().zip(&want).enumerate() {
+            assert_eq!(g.len(), preps[c].pixels.len());
+            let g: Vec<f64> = g
+                .iter()
+                .flatten()
+                .flatten()
+                .map(|&v| f64::from(v))
+                .collect();
+            let w: Vec<f64> = w
+                .iter()
+                .flatten()
+                .flatten()
+                .map(|&v| f64::from(v))
+                .collect();
+            let what = format!("case {c} {} dI/dn", cpu.level().name());
+            assert!(max_abs(&w) > 0.0, "{what}: all zero");
+            assert_close(&what, &g, &w, GRAD_TOL * max_abs(&w), 0.0);
+        }
+    }
+}

@@ -4,7 +4,7 @@
 use pulp::{Simd, WithSimd};
 
 use super::math::{exp2, exp2m1};
-use super::pair::{Cols, Setup, add_channels, coef, geo, underflows};
+use super::pair::{Cols, DPOW_MAX, Setup, add_channels, coef, geo, underflows};
 use super::table::{Px, TexelTable};
 
 /// Texels per group: each pixel's lane sums run over one group in f32 and are then added
@@ -17,6 +17,9 @@ pub struct Forward<'a> {
     pub setup: &'a Setup<'a>,
     pub px: &'a [Px],
     pub out: &'a mut [[f64; 3]],
+    /// With it, also dI^k/dn per pixel (index k * 3 + axis), added into: the normals'
+    /// Jacobian, in the same pass.
+    pub jac: Option<&'a mut [[f64; 9]]>,
 }
 
 impl WithSimd for Forward<'_> {
@@ -24,26 +27,37 @@ impl WithSimd for Forward<'_> {
 
     #[inline(always)]
     fn with_simd<S: Simd>(self, s: S) {
-        if self.setup.perspective {
-            self.run::<S, true>(s)
-        } else {
-            self.run::<S, false>(s)
+        match (self.setup.perspective, self.jac.is_some()) {
+            (true, false) => self.run::<S, true, false>(s),
+            (false, false) => self.run::<S, false, false>(s),
+            (true, true) => self.run::<S, true, true>(s),
+            (false, true) => self.run::<S, false, true>(s),
         }
     }
 }
 
 impl Forward<'_> {
-    /// The pass for a perspective (`P`) or orthographic camera.
+    /// The pass for a perspective (`P`) or orthographic camera, with the Jacobian (`J`) or
+    /// without.
     #[inline(always)]
-    fn run<S: Simd, const P: bool>(self, s: S) {
+    fn run<S: Simd, const P: bool, const J: bool>(self, s: S) {
         let cols = Cols::<S>::new(self.table);
         let n_blocks = self.table.blocks(S::F32_LANES);
         let per_group = (GROUP_TEXELS / S::F32_LANES).max(1);
         let zero = s.splat_f32s(0.0);
+        let one = s.splat_f32s(1.0);
+        let mut no_jac = vec![[0.0f64; 9]; if J { 0 } else { self.px.len() }];
+        let jac_out = self.jac.unwrap_or(&mut no_jac);
         for g0 in (0..n_blocks).step_by(per_group) {
             let g1 = (g0 + per_group).min(n_blocks);
-            for (p, out) in self.px.iter().zip(self.out.iter_mut()) {
+            for ((p, out), jac_out) in self
+                .px
+                .iter()
+                .zip(self.out.iter_mut())
+                .zip(jac_out.iter_mut())
+            {
                 let mut acc = [zero; 3];
+                let mut jac = [zero; 9];
                 for b in g0..g1 {
                     let Some(g) = geo::<S, P>(s, &cols, p, b) else {
                         continue;
@@ -53,17 +67,35 @@ impl Forward<'_> {
                     } else {
                         [cols.fconst[0][b], cols.fconst[1][b], cols.fconst[2][b]]
                     };
+                    // J: E m0 m1 x^(m1 - 1) summed per channel, the lobes' dI/dx
+                    let mut dx = [zero; 3];
+                    // 1 / x, J only
+                    let inv_x = if J {
+                        s.div_f32s(one, s.max_f32s(g.x, s.splat_f32s(1e-30)))
+                    } else {
+                        zero
+                    };
                     for grp in &self.setup.plan.groups {
-                        let xb = match grp.exp_col {
+                        let (xb, dp) = match grp.exp_col {
                             Some(col) => {
-                                let t = s
-                                    .mul_f32s(coef::<S, P>(s, &cols, self.setup, &g, b, col), g.l2);
+                                let m1 = coef::<S, P>(s, &cols, self.setup, &g, b, col);
+                                let t = s.mul_f32s(m1, g.l2);
                                 if underflows(s, t, g.up) {
                                     continue;
                                 }
-                                Some(exp2(s, t))
+                                let xb = exp2(s, t);
+                                let dp = if J {
+                                    let dp = s.min_f32s(
+                                        s.mul_f32s(s.mul_f32s(m1, xb), inv_x),
+                                        s.splat_f32s(DPOW_MAX),
+                                    );
+                                    s.select_f32s(g.pos, dp, zero)
+                                } else {
+                                    zero
+                                };
+                                (Some(xb), dp)
                             }
-                            None => None,
+                            None => (None, zero),
                         };
                         for lobe in &grp.lobes {
                             if lobe.zero_scale {
@@ -72,15 +104,42 @@ impl Forward<'_> {
                             // a log2(e): the scale columns are stored so
                             let a2 = coef::<S, P>(s, &cols, self.setup, &g, b, lobe.a_col);
                             let u = xb.map_or(a2, |xb| s.mul_f32s(a2, xb));
-                            add_channels(s, lobe.channels, exp2m1(s, u), &mut f);
+                            let em1 = exp2m1(s, u);
+                            add_channels(s, lobe.channels, em1, &mut f);
+                            if J && xb.is_some() {
+                                let a = s.mul_f32s(a2, s.splat_f32s(std::f32::consts::LN_2));
+                                let ead = s.mul_f32s(s.mul_f32s(s.add_f32s(em1, one), a), dp);
+                                add_channels(s, lobe.channels, ead, &mut dx);
+                            }
                         }
                     }
                     for k in 0..3 {
                         acc[k] = s.mul_add_e_f32s(s.mul_f32s(f[k], g.c), cols.ld[k][b], acc[k]);
                     }
+                    if J {
+                        // dI^k/dn = sum over texels of L^k d_omega (f^k w + c dI^k/dx h)
+                        for k in 0..3 {
+                            let ld = cols.ld[k][b];
+                            let along_w = s.select_f32s(g.up, s.mul_f32s(ld, f[k]), zero);
+                            let ch = s.mul_f32s(s.mul_f32s(g.c, ld), dx[k]);
+                            for a in 0..3 {
+                                let w = cols.w[a][b];
+                                jac[k * 3 + a] = s.mul_add_e_f32s(
+                                    along_w,
+                                    w,
+                                    s.mul_add_e_f32s(ch, g.h[a], jac[k * 3 + a]),
+                                );
+                            }
+                        }
+                    }
                 }
                 for k in 0..3 {
                     out[k] += s.reduce_sum_f32s(acc[k]) as f64;
+                }
+                if J {
+                    for (o, v) in jac_out.iter_mut().zip(jac) {
+                        *o += s.reduce_sum_f32s(v) as f64;
+                    }
                 }
             }
         }

@@ -164,6 +164,25 @@ impl FastCpu {
 
     /// The image of a prepared scene, row-major, 0 on background pixels.
     pub fn forward(&self, prep: &Prepared) -> Vec<[f32; 3]> {
+        let (sums, _) = self.forward_sums(prep, false);
+        let mut image = vec![[0.0f32; 3]; prep.width * prep.height];
+        for (p, v) in prep.pixels.iter().zip(sums) {
+            image[p.index] = v.map(|x| x as f32);
+        }
+        image
+    }
+
+    /// dI^k/dn per pixel of `prep.pixels` (in that order), `[k][axis]`, in one pass that
+    /// costs little more than the forward one.
+    pub fn normal_jacobians(&self, prep: &Prepared) -> Vec<[[f32; 3]; 3]> {
+        let (_, jac) = self.forward_sums(prep, true);
+        jac.iter()
+            .map(|j| std::array::from_fn(|k| std::array::from_fn(|a| j[k * 3 + a] as f32)))
+            .collect()
+    }
+
+    /// Per pixel of `prep.pixels`: the image's f64 sums, and with `jacobian` dI^k/dn's.
+    fn forward_sums(&self, prep: &Prepared, jacobian: bool) -> (Vec<[f64; 3]>, Vec<[f64; 9]>) {
         let perspective = !prep.camera.is_orthographic();
         let ctrl = &prep.ctrl;
         // orthographic: constant lobes are summed per texel in the table; perspective:
@@ -181,21 +200,27 @@ impl FastCpu {
         let inputs = PassInputs::new(prep, plan);
         let (setup, px) = (inputs.setup(), &inputs.px);
         let mut sums = vec![[0.0f64; 3]; px.len()];
+        let mut jac = vec![[0.0f64; 9]; if jacobian { px.len() } else { 0 }];
+        let jac_chunks: Vec<Option<&mut [[f64; 9]]>> = if jacobian {
+            jac.chunks_mut(FORWARD_CHUNK).map(Some).collect()
+        } else {
+            (0..px.len().div_ceil(FORWARD_CHUNK))
+                .map(|_| None)
+                .collect()
+        };
         px.par_chunks(FORWARD_CHUNK)
             .zip(sums.par_chunks_mut(FORWARD_CHUNK))
-            .for_each(|(px, out)| {
+            .zip(jac_chunks)
+            .for_each(|((px, out), jac)| {
                 self.dispatch(Forward {
                     table: &table,
                     setup: &setup,
                     px,
                     out,
+                    jac,
                 })
             });
-        let mut image = vec![[0.0f32; 3]; prep.width * prep.height];
-        for (p, v) in prep.pixels.iter().zip(sums) {
-            image[p.index] = v.map(|x| x as f32);
-        }
-        image
+        (sums, jac)
     }
 
     /// The backward pass of a prepared scene for upstream `g` (row-major).
@@ -360,6 +385,13 @@ impl Backend for FastCpu {
             .iter()
             .zip(upstream)
             .map(|(p, u)| FastCpu::backward(self, p, &u.pixels))
+            .collect())
+    }
+
+    fn normal_jacobians(&self, preps: &[Prepared]) -> Result<Vec<Vec<[[f32; 3]; 3]>>> {
+        Ok(preps
+            .iter()
+            .map(|p| FastCpu::normal_jacobians(self, p))
             .collect())
     }
 }

@@ -21,6 +21,7 @@
 use std::collections::HashMap;
 
 use crate::Backend;
+use crate::envmap::EnvMap;
 use crate::error::{Error, Result};
 use crate::prepare::Prepared;
 use crate::scene::{Gradients, Image, Scene};
@@ -38,8 +39,8 @@ const SAMPLE_EVERY: usize = 64;
 const SAMPLE_MIN: usize = 256;
 /// ... and at most this many.
 const SAMPLE_MAX: usize = 2048;
-/// Tables are tried on every this-many-th pixel of the sample.
-const TABLE_SAMPLE_EVERY: usize = 4;
+/// The gradients' estimate runs on 1 texel in this many per axis.
+const TEXEL_STRIDE: usize = 16;
 /// Block sides tried, coarsest first.
 const ENV_FACTORS: [usize; 4] = [8, 4, 2, 1];
 /// Kept texels tried.
@@ -49,10 +50,15 @@ const KEEPS_FOR_TABLES: [usize; 3] = [16, 64, 0];
 /// An approximation is taken only if its predicted work is below this share of the exact
 /// layer's.
 const MAX_COST_SHARE: f64 = 0.5;
+/// The trials may spend this share of the exact layer's work.
+const ESTIMATE_BUDGET: f64 = 0.1;
 /// The first table resolution tried.
 const FIRST_TABLE: usize = 32;
 /// The cost of interpolating one pixel from a table, in pair evaluations.
 const INTERP_PAIRS: f64 = 4.0;
+/// The cost of a pair in the normals' Jacobian (a table's dLoss/dn), in forward pair
+/// evaluations.
+const JACOBIAN_PAIR: f64 = 1.5;
 /// The cost of a pair in the backward pass, in forward pair evaluations.
 const BACKWARD_PAIR: f64 = 3.0;
 
@@ -165,6 +171,28 @@ fn sample_positions(len: usize) -> Vec<usize> {
         .collect()
 }
 
+/// The texels the gradients' estimate runs on: 1 in 16 x 16, on a grid.
+fn texel_mask(env: &EnvMap) -> Vec<bool> {
+    (0..env.height * env.width)
+        .map(|i| {
+            (i / env.width) % TEXEL_STRIDE == TEXEL_STRIDE / 2
+                && (i % env.width) % TEXEL_STRIDE == TEXEL_STRIDE / 2
+        })
+        .collect()
+}
+
+/// [`rel`] over the elements in `mask`.
+fn rel_masked(a: &[[f32; 3]], b: &[[f32; 3]], mask: &[bool]) -> f64 {
+    let pick = |v: &[[f32; 3]]| -> Vec<[f32; 3]> {
+        v.iter()
+            .zip(mask)
+            .filter(|(_, m)| **m)
+            .map(|(x, _)| *x)
+            .collect()
+    };
+    rel(&pick(a), &pick(b))
+}
+
 /// Sampled pixels and the exact layer's results on them.
 struct Truth {
     sample: Prepared,
@@ -182,6 +210,19 @@ struct Trial<'a> {
     pixels: Truth,
     /// For the tables, which cost 16 nodes per sampled pixel: a part of the sample.
     tables: Truth,
+    /// For dLoss/dL and dLoss/dctrl (with an upstream gradient): every pixel, but a
+    /// sample of the texels. These are sums over pixels whose errors cancel between
+    /// neighbours (a texel's horizon is a kink that a table's errors straddle with both
+    /// signs), so a sample of pixels would overstate them; the layer is linear in L, so
+    /// dLoss/dL of a texel needs no other texel.
+    texels: Option<TexelTruth>,
+}
+
+/// The exact gradients for a sample of texels, on every pixel.
+struct TexelTruth {
+    mask: Vec<bool>,
+    pixels: Prepared,
+    grads: Gradients,
 }
 
 impl<'a> Trial<'a> {
@@ -192,13 +233,7 @@ impl<'a> Trial<'a> {
         upstream: Option<&'a Image>,
     ) -> Result<Self> {
         let truth = |sample: Prepared| -> Result<Truth> {
-            let exact = Plan::new(
-                &sample,
-                &scene.env,
-                &Method::EXACT,
-                &full.pixels,
-                upstream.is_some(),
-            );
+            let exact = Plan::new(&sample, &scene.env, &Method::EXACT, &full.pixels);
             let image = exact.forward(backend)?;
             let grads = upstream.map(|u| exact.backward(backend, u)).transpose()?;
             Ok(Truth {
@@ -208,18 +243,45 @@ impl<'a> Trial<'a> {
             })
         };
         let positions = sample_positions(full.pixels.len());
-        let every: Vec<usize> = positions
+        let pixels = truth(sampled(full, &positions))?;
+        // for the tables: every 8th sampled pixel, and as many again of the brightest
+        // others, where a table's error concentrates (the highlights)
+        let mut table_positions: Vec<usize> = positions.iter().copied().step_by(8).collect();
+        let mut rest: Vec<(f32, usize)> = positions
             .iter()
-            .copied()
-            .step_by(TABLE_SAMPLE_EVERY)
+            .enumerate()
+            .filter(|(j, _)| j % 8 != 0)
+            .map(|(_, &k)| {
+                let v = pixels.image.pixels[full.pixels[k].index];
+                (v[0].max(v[1]).max(v[2]), k)
+            })
             .collect();
+        rest.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+        let brightest = table_positions.len();
+        table_positions.extend(rest.iter().take(brightest).map(|&(_, k)| k));
+        table_positions.sort_unstable();
         Ok(Trial {
             backend,
             scene,
             full,
             upstream,
-            pixels: truth(sampled(full, &positions))?,
-            tables: truth(sampled(full, &every))?,
+            pixels,
+            tables: truth(sampled(full, &table_positions))?,
+            texels: match upstream {
+                Some(up) => {
+                    let mask = texel_mask(&scene.env);
+                    let pixels = full.clone();
+                    let exact =
+                        Plan::masked(&pixels, &scene.env, &Method::EXACT, &full.pixels, &mask);
+                    let grads = exact.backward(backend, up)?;
+                    Some(TexelTruth {
+                        mask,
+                        pixels,
+                        grads,
+                    })
+                }
+                None => None,
+            },
         })
     }
 
@@ -230,13 +292,7 @@ impl<'a> Trial<'a> {
         } else {
             &self.pixels
         };
-        let plan = Plan::new(
-            &truth.sample,
-            &self.scene.env,
-            method,
-            &self.full.pixels,
-            self.upstream.is_some(),
-        );
+        let plan = Plan::new(&truth.sample, &self.scene.env, method, &self.full.pixels);
         let image = plan.forward(self.backend)?;
         let mut e = Estimate {
             image: rel(&image.pixels, &truth.image.pixels),
@@ -246,11 +302,18 @@ impl<'a> Trial<'a> {
         if e.image * SAFETY > tol {
             return Ok(e);
         }
-        if let (Some(up), Some(exact)) = (self.upstream, &truth.grads) {
+        if let (Some(up), Some(exact), Some(texels)) = (self.upstream, &truth.grads, &self.texels) {
             let g = plan.backward(self.backend, up)?;
-            e.d_env = Some(rel(&g.d_env, &exact.d_env));
             e.d_normals = Some(rel(&g.d_normals, &exact.d_normals));
-            e.d_ctrl = Some(rel_ctrl(&g.d_ctrl, &exact.d_ctrl));
+            if e.max() * SAFETY > tol {
+                return Ok(e);
+            }
+            let env = &self.scene.env;
+            let (mask, full) = (&texels.mask, &self.full.pixels);
+            let plan = Plan::masked(&texels.pixels, env, method, full, mask);
+            let g = plan.backward(self.backend, up)?;
+            e.d_env = Some(rel_masked(&g.d_env, &texels.grads.d_env, mask));
+            e.d_ctrl = Some(rel_ctrl(&g.d_ctrl, &texels.grads.d_ctrl));
         }
         Ok(e)
     }
@@ -271,7 +334,7 @@ pub(crate) fn choose_plan<'a>(
     }
     let backward = upstream.is_some();
     let done = |method: Method, estimate: Estimate, cost: f64| {
-        let plan = Plan::new(prep, &scene.env, &method, &prep.pixels, backward);
+        let plan = Plan::new(prep, &scene.env, &method, &prep.pixels);
         let choice = Choice {
             method,
             estimate,
@@ -318,6 +381,11 @@ pub(crate) fn choose_plan<'a>(
     // an approximation must save at least half the work to be worth its estimate
     let most = exact_cost * MAX_COST_SHARE;
     let mut light_error: HashMap<(usize, usize), f64> = HashMap::new();
+    // what the trials may spend, in forward pair evaluations
+    let mut budget = exact_cost * ESTIMATE_BUDGET;
+    let s_pixels = trial.pixels.sample.pixels.len() as f64;
+    let s_tables = trial.tables.sample.pixels.len() as f64;
+    let trial_pair = 1.0 + if backward { BACKWARD_PAIR } else { 0.0 };
     let mut per_pixel: Vec<((usize, usize), f64)> = light_counts
         .iter()
         .filter(|((f, _), _, _)| *f > 1)
@@ -328,6 +396,11 @@ pub(crate) fn choose_plan<'a>(
         if cost >= best.2.min(most) {
             break;
         }
+        let spend = s_pixels * cost / (n * pair) * trial_pair;
+        if spend > budget {
+            continue;
+        }
+        budget -= spend;
         let m = method(f, k, None);
         let e = trial.estimate(&m, tol)?;
         light_error.insert((f, k), e.image);
@@ -348,7 +421,9 @@ pub(crate) fn choose_plan<'a>(
         for ((f, k), blocks, kept) in table_lights {
             let e_light = match light_error.get(&(f, k)) {
                 Some(&e) => e,
+                None if s_pixels * (blocks + kept) > budget => continue,
                 None => {
+                    budget -= s_pixels * (blocks + kept);
                     let e = trial.estimate(&method(f, k, None), 0.0)?.image;
                     light_error.insert((f, k), e);
                     e
@@ -365,14 +440,25 @@ pub(crate) fn choose_plan<'a>(
                 let r = TABLE_SIZES[i];
                 let grid = Grid::new(r, &prep.pixels);
                 let (nodes, left) = Table::count(&grid, &prep.pixels);
-                let cost = (nodes as f64 * blocks * (if backward { 4.0 } else { 1.0 })
-                    + left as f64 * blocks
-                    + n * kept)
-                    * pair
+                let node_pair = if backward {
+                    BACKWARD_PAIR + JACOBIAN_PAIR
+                } else {
+                    1.0
+                };
+                let cost = nodes as f64 * blocks * node_pair
+                    + (left as f64 * blocks + n * kept) * pair
                     + n * INTERP_PAIRS;
                 if cost >= best.2.min(most) {
                     break;
                 }
+                let spend = nodes.min(16 * s_tables as usize) as f64
+                    * blocks
+                    * (1.0 + if backward { node_pair } else { 0.0 })
+                    + s_tables * kept * trial_pair;
+                if spend > budget {
+                    break;
+                }
+                budget -= spend;
                 let m = method(f, k, Some(r));
                 let e = trial.estimate(&m, tol)?;
                 if e.max() * SAFETY <= tol {

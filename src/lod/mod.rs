@@ -164,7 +164,7 @@ impl std::str::FromStr for Method {
 pub fn render(backend: &dyn Backend, scene: &Scene, method: &Method) -> Result<Image> {
     method.validate(scene)?;
     let prep = Prepared::new(scene);
-    Plan::new(&prep, &scene.env, method, &prep.pixels, false).forward(backend)
+    Plan::new(&prep, &scene.env, method, &prep.pixels).forward(backend)
 }
 
 /// The gradients of `scene` under `method`, for upstream dLoss/dImage `upstream`: the
@@ -183,7 +183,7 @@ pub fn backward(
         )));
     }
     let prep = Prepared::new(scene);
-    Plan::new(&prep, &scene.env, method, &prep.pixels, true).backward(backend, upstream)
+    Plan::new(&prep, &scene.env, method, &prep.pixels).backward(backend, upstream)
 }
 
 /// The image of `scene` by the cheapest method whose estimated error is within `tol`, and

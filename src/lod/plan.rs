@@ -9,7 +9,7 @@ use crate::scene::{Gradients, Image};
 
 use super::Method;
 use super::light::{Lights, lights};
-use super::table::{Grid, Table, with_pixels};
+use super::table::{Grid, Table};
 
 /// The scenes of an approximation and what each is for.
 struct Parts {
@@ -20,9 +20,8 @@ struct Parts {
     blocks: usize,
     /// The kept texels on every pixel.
     kept: Option<usize>,
-    /// The block lights on the table's nodes, and on three copies of them (for dI/dn per
-    /// channel) when a backward pass is planned.
-    table: Option<(Table, usize, Option<usize>)>,
+    /// The table and its nodes (with the block lights).
+    table: Option<(Table, usize)>,
 }
 
 /// What a method makes of one prepared scene.
@@ -34,18 +33,52 @@ pub(crate) struct Plan<'a> {
 impl<'a> Plan<'a> {
     /// `method` on `prep` (whose map is `env`). A table's grid spans `grid_pixels` (the
     /// scene's pixels, of which `prep`'s may be a sample, so that a sample sees the grid
-    /// the whole image would). `backward`: whether [`Plan::backward`] will be called.
+    /// the whole image would).
     pub fn new(
         prep: &'a Prepared,
         env: &EnvMap,
         method: &Method,
         grid_pixels: &[PixelRec],
-        backward: bool,
     ) -> Self {
         if method.is_exact() {
             return Plan { prep, parts: None };
         }
-        let lights = lights(env, method.env_factor, method.keep);
+        Plan::with_lights(
+            prep,
+            env,
+            method,
+            grid_pixels,
+            lights(env, method.env_factor, method.keep),
+        )
+    }
+
+    /// [`Plan::new`] for the texels in `mask` alone (one flag per texel of the map): only
+    /// the blocks holding some of them, only the kept texels among them. dLoss/dL of those
+    /// texels is as with every texel (the layer is linear in L); the rest is not.
+    pub fn masked(
+        prep: &'a Prepared,
+        env: &EnvMap,
+        method: &Method,
+        grid_pixels: &[PixelRec],
+        mask: &[bool],
+    ) -> Self {
+        let mut l = lights(env, method.env_factor, method.keep);
+        let mut used = vec![false; l.blocks.len()];
+        for (&(b, _), _) in l.share.iter().zip(mask).filter(|(_, m)| **m) {
+            used[b as usize] = true;
+        }
+        l.blocks.retain(|b| used[b.index]);
+        l.kept.retain(|k| mask[k.index]);
+        Plan::with_lights(prep, env, method, grid_pixels, l)
+    }
+
+    fn with_lights(
+        prep: &'a Prepared,
+        env: &EnvMap,
+        method: &Method,
+        grid_pixels: &[PixelRec],
+        lights: Lights,
+    ) -> Self {
         let (w, h) = (prep.width, prep.height);
         let block_scene = |pixels: Vec<PixelRec>| {
             Prepared::from_lights(
@@ -71,13 +104,8 @@ impl<'a> Plan<'a> {
         scenes.push(block_scene(per_pixel));
         let blocks = 0;
         let table = table.map(|t| {
-            scenes.push(t.nodes_scene(&scenes[blocks], 1));
-            let nodes = scenes.len() - 1;
-            let jac = backward.then(|| {
-                scenes.push(t.nodes_scene(&scenes[blocks], 3));
-                scenes.len() - 1
-            });
-            (t, nodes, jac)
+            scenes.push(t.nodes_scene(&scenes[blocks]));
+            (t, scenes.len() - 1)
         });
         let kept = (!lights.kept.is_empty()).then(|| {
             scenes.push(Prepared::from_lights(
@@ -111,23 +139,13 @@ impl<'a> Plan<'a> {
                 .render_prepared(std::slice::from_ref(self.prep))?
                 .remove(0));
         };
-        // the Jacobian copies are for the backward pass
-        let run: Vec<usize> = (0..p.scenes.len())
-            .filter(|&i| !matches!(p.table, Some((_, _, Some(j))) if j == i))
-            .collect();
-        let images = if run.len() == p.scenes.len() {
-            backend.render_prepared(&p.scenes)?
-        } else {
-            let scenes: Vec<Prepared> = run.iter().map(|&i| p.scenes[i].clone()).collect();
-            backend.render_prepared(&scenes)?
-        };
-        let at = |i: usize| &images[run.iter().position(|&r| r == i).unwrap_or(0)];
-        let mut image = at(p.blocks).clone();
-        if let Some((t, nodes, _)) = &p.table {
-            t.interpolate(&at(*nodes).pixels, &mut image.pixels);
+        let images = backend.render_prepared(&p.scenes)?;
+        let mut image = images[p.blocks].clone();
+        if let Some((t, nodes)) = &p.table {
+            t.interpolate(&images[*nodes].pixels, &mut image.pixels);
         }
         if let Some(k) = p.kept {
-            add(&mut image.pixels, &at(k).pixels);
+            add(&mut image.pixels, &images[k].pixels);
         }
         Ok(image)
     }
@@ -145,23 +163,11 @@ impl<'a> Plan<'a> {
         };
         let ups: Vec<Image> = (0..p.scenes.len())
             .map(|i| match &p.table {
-                Some((t, nodes, _)) if i == *nodes => Image {
+                Some((t, nodes)) if i == *nodes => Image {
                     width: t.normals.len(),
                     height: 1,
                     pixels: t.scatter(&upstream.pixels),
                 },
-                Some((t, _, Some(jac))) if i == *jac => {
-                    let n = t.normals.len();
-                    let mut pixels = vec![[0.0f32; 3]; 3 * n];
-                    for (j, px) in pixels.iter_mut().enumerate() {
-                        px[j / n] = 1.0;
-                    }
-                    Image {
-                        width: 3 * n,
-                        height: 1,
-                        pixels,
-                    }
-                }
                 _ => upstream.clone(),
             })
             .collect();
@@ -170,12 +176,14 @@ impl<'a> Plan<'a> {
         let mut d_blocks = a.d_env.clone();
         let mut d_normals = a.d_normals.clone();
         let mut d_ctrl = a.d_ctrl;
-        if let Some((t, nodes, jac)) = &p.table {
+        if let Some((t, nodes)) = &p.table {
             let g = &grads[*nodes];
             add(&mut d_blocks, &g.d_env);
             add_ctrl(&mut d_ctrl, &g.d_ctrl);
-            let jac = jac.expect("a plan for the backward pass has the Jacobian scene");
-            t.normal_gradients(&upstream.pixels, &grads[jac].d_normals, &mut d_normals);
+            let jac = backend
+                .normal_jacobians(std::slice::from_ref(&p.scenes[*nodes]))?
+                .remove(0);
+            t.normal_gradients(&upstream.pixels, &jac, &mut d_normals);
         }
         let d_kept = p.kept.map(|k| {
             let g = &grads[k];
@@ -208,5 +216,5 @@ fn add_ctrl(a: &mut [f32], b: &[f32]) {
 /// `prep` restricted to the pixels at positions `sample`.
 pub(crate) fn sampled(prep: &Prepared, sample: &[usize]) -> Prepared {
     let pixels = sample.iter().map(|&k| prep.pixels[k]).collect();
-    with_pixels(prep, prep.width, prep.height, pixels)
+    prep.with_pixels(prep.width, prep.height, pixels)
 }

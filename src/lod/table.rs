@@ -180,14 +180,15 @@ impl Table {
         (used.iter().filter(|&&u| u).count(), left)
     }
 
-    /// The nodes as the pixels of a scene with `base`'s lights: one row of `copies` x
-    /// (number of nodes) pixels, the node list repeated.
-    pub fn nodes_scene(&self, base: &Prepared, copies: usize) -> Prepared {
-        let n = self.normals.len();
-        let pixels = (0..copies * n)
-            .map(|i| PixelRec::new(i, self.normals[i % n], [0.0, 0.0, 1.0]))
+    /// The nodes as the pixels of a scene with `base`'s lights, in one row.
+    pub fn nodes_scene(&self, base: &Prepared) -> Prepared {
+        let pixels = self
+            .normals
+            .iter()
+            .enumerate()
+            .map(|(i, &n)| PixelRec::new(i, n, [0.0, 0.0, 1.0]))
             .collect();
-        with_pixels(base, copies * n, 1, pixels)
+        base.with_pixels(self.normals.len(), 1, pixels)
     }
 
     /// Adds the interpolated node values `nodes` to `out` (image layout).
@@ -223,16 +224,15 @@ impl Table {
     }
 
     /// dLoss/dn of the tabled pixels, added to `out`: sum over channels of g_c times the
-    /// interpolated dI_c/dn, from `jac`, the nodes' dI_c/dn for c = 0, 1, 2 in turn.
-    pub fn normal_gradients(&self, g: &[[f32; 3]], jac: &[[f32; 3]], out: &mut [[f32; 3]]) {
-        let n = self.normals.len();
+    /// interpolated dI_c/dn, from `jac`, the nodes' dI_c/dn.
+    pub fn normal_gradients(&self, g: &[[f32; 3]], jac: &[[[f32; 3]; 3]], out: &mut [[f32; 3]]) {
         for c in &self.cells {
             let gp = g[c.index];
             let mut acc = [0.0f32; 3];
             for (&s, &w) in c.slots.iter().zip(&c.weights) {
                 let s = s as usize;
                 for ch in 0..3 {
-                    let j = jac[ch * n + s];
+                    let j = jac[s][ch];
                     let wg = w * gp[ch];
                     for a in 0..3 {
                         acc[a] += wg * j[a];
@@ -243,27 +243,5 @@ impl Table {
                 out[c.index][a] += acc[a];
             }
         }
-    }
-}
-
-/// `base` with other pixels (and image size): its lights, material and camera.
-pub(crate) fn with_pixels(
-    base: &Prepared,
-    width: usize,
-    height: usize,
-    pixels: Vec<PixelRec>,
-) -> Prepared {
-    Prepared {
-        width,
-        height,
-        env_height: base.env_height,
-        env_width: base.env_width,
-        camera: base.camera,
-        ctrl: base.ctrl,
-        pixels,
-        texels: base.texels.clone(),
-        lit: base.lit.clone(),
-        active_lobes: base.active_lobes.clone(),
-        const_lobes: base.const_lobes.clone(),
     }
 }
