@@ -838,9 +838,6 @@ fn backward_within_meets_the_tolerance() {
 }
 
 #[test]
-#[ignore = "bug in src/lod/choose.rs: the dLoss/dL and dLoss/dctrl estimates run on 1 \
-            texel in 16 x 16 (texel_mask), none in a map of 8 rows, so they read 0: \
-            env2+keep16 is taken for 0.03 with dLoss/dL 0.475 off"]
 fn backward_within_d_env_on_a_small_map() {
     let scene = ortho(
         NormalMap::sphere(96),
@@ -852,9 +849,6 @@ fn backward_within_d_env_on_a_small_map() {
 }
 
 #[test]
-#[ignore = "bug in src/lod/choose.rs: 8 texels of a 32 x 64 map (1 in 16 x 16) miss \
-            where a table's dLoss/dL errs most: table32+keep16 taken for 1e-2 with dLoss/dL \
-            estimated 4.7e-3, measured 1.24e-2"]
 fn backward_within_d_env_of_a_table() {
     let scene = ortho(
         cylinder(96, 96),

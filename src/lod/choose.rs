@@ -39,8 +39,8 @@ const SAMPLE_EVERY: usize = 64;
 const SAMPLE_MIN: usize = 256;
 /// ... and at most this many.
 const SAMPLE_MAX: usize = 2048;
-/// The gradients' estimate runs on 1 texel in this many per axis.
-const TEXEL_STRIDE: usize = 16;
+/// About this many texels for the estimates of dLoss/dL and dLoss/dctrl.
+const SAMPLE_TEXELS: usize = 128;
 /// Block sides tried, coarsest first.
 const ENV_FACTORS: [usize; 4] = [8, 4, 2, 1];
 /// Kept texels tried.
@@ -103,6 +103,13 @@ pub struct Choice {
 
 impl std::fmt::Display for Choice {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        if self.method.is_exact() {
+            return write!(
+                f,
+                "method exact (no approximation was estimated within tolerance {:.0e} at under half the work)",
+                self.tolerance
+            );
+        }
         write!(
             f,
             "method {} (estimated error {:.2e} on {} sampled pixels, tolerance {:.0e}, predicted work {:.1}% of exact)",
@@ -171,14 +178,16 @@ fn sample_positions(len: usize) -> Vec<usize> {
         .collect()
 }
 
-/// The texels the gradients' estimate runs on: 1 in 16 x 16, on a grid.
+/// The texels the gradients' estimate runs on: about [`SAMPLE_TEXELS`] of them on a
+/// regular grid (every texel of a small map).
 fn texel_mask(env: &EnvMap) -> Vec<bool> {
-    (0..env.height * env.width)
-        .map(|i| {
-            (i / env.width) % TEXEL_STRIDE == TEXEL_STRIDE / 2
-                && (i % env.width) % TEXEL_STRIDE == TEXEL_STRIDE / 2
-        })
-        .collect()
+    let (h, w) = (env.height, env.width);
+    let stride = ((h * w) as f64 / SAMPLE_TEXELS as f64)
+        .sqrt()
+        .floor()
+        .max(1.0) as usize;
+    let on = |i: usize| i % stride == stride / 2;
+    (0..h * w).map(|i| on(i / w) && on(i % w)).collect()
 }
 
 /// [`rel`] over the elements in `mask`.
