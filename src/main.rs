@@ -296,8 +296,9 @@ fn render(args: &RenderArgs) -> Result<(), Failure> {
     for n in &loaded.notes {
         eprintln!("matedit: {n}");
     }
-    let renderer = renderer(&args.scene)?;
     let accuracy = args.scene.accuracy();
+    check_method(&accuracy, &loaded.batch)?;
+    let renderer = renderer(&args.scene)?;
     let (images, choices) = with_progress("rendering", || {
         renderer.render_with(&loaded.batch, &accuracy)
     })?;
@@ -318,6 +319,16 @@ fn render(args: &RenderArgs) -> Result<(), Failure> {
             image.width,
             image.height
         );
+    }
+    Ok(())
+}
+
+/// A method named on the command line must suit every scene (tables: orthographic).
+fn check_method(accuracy: &Accuracy, batch: &matedit::Batch) -> Result<(), Failure> {
+    if let Accuracy::Method(m) = accuracy {
+        for s in batch.scenes() {
+            m.validate(s)?;
+        }
     }
     Ok(())
 }
@@ -360,8 +371,9 @@ fn grad(args: &GradArgs) -> Result<(), Failure> {
     for n in &loaded.notes {
         eprintln!("matedit: {n}");
     }
-    let renderer = renderer(&args.scene)?;
     let accuracy = args.scene.accuracy();
+    check_method(&accuracy, &loaded.batch)?;
+    let renderer = renderer(&args.scene)?;
     let (grads, choices) = with_progress("differentiating", || {
         renderer.backward_with(&loaded.batch, &upstream, &accuracy)
     })?;
