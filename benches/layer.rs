@@ -31,18 +31,20 @@
 //!
 //! Output: a table on stdout; target/bench/layer.json and layer.csv.
 
-use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+mod common;
+
+use std::path::PathBuf;
 use std::process::Command;
 use std::time::Instant;
 
+use common::{
+    BUMPY_SEED, Files, flat3, list, median, num, read_npy, rel_err, run_peers, target_dir,
+    upstream_for, write, write_inputs,
+};
 use matedit::io::npy;
 use matedit::prepare::Prepared;
 use matedit::reference::{self, GradientsF64};
-use matedit::{
-    Batch, Camera, Convention, Device, EnvMap, Gradients, Image, Material, NormalMap, Renderer,
-    Scene, presets,
-};
+use matedit::{Batch, Camera, Device, EnvMap, Gradients, Image, NormalMap, Renderer, Scene};
 use serde_json::{Value, json};
 
 const USAGE: &str = "\
@@ -65,9 +67,6 @@ cargo bench --bench layer -- [OPTIONS]
                      reference's image, d_env and d_normals as float32 reference_*.npy";
 
 const SCENES: [&str; 3] = ["sphere128", "sphere256", "bumpy256"];
-const ENV_SIZE: (usize, usize) = (64, 128);
-const BUMPY_SEED: u64 = 1;
-const UPSTREAM_SEED: u64 = 0x5eed;
 
 struct Opts {
     scenes: Vec<String>,
@@ -82,14 +81,6 @@ struct Opts {
     env: Option<PathBuf>,
     out: PathBuf,
     keep: bool,
-}
-
-fn list(s: &str) -> Vec<String> {
-    s.split(',')
-        .map(str::trim)
-        .filter(|v| !v.is_empty())
-        .map(str::to_string)
-        .collect()
 }
 
 fn parse_args() -> Result<Opts, String> {
@@ -108,11 +99,6 @@ fn parse_args() -> Result<Opts, String> {
         keep: false,
     };
     let mut args = std::env::args().skip(1);
-    let num = |v: Option<String>, name: &str| -> Result<usize, String> {
-        v.as_deref()
-            .and_then(|s| s.parse().ok())
-            .ok_or_else(|| format!("{name} needs a number"))
-    };
     while let Some(a) = args.next() {
         match a.as_str() {
             "--bench" => {} // cargo's
@@ -142,19 +128,7 @@ fn parse_args() -> Result<Opts, String> {
         o.peer_reps = o.reps;
     }
     o.peers.retain(|p| p != "none");
-    for s in &o.scenes {
-        if !SCENES.contains(&s.as_str()) {
-            return Err(format!("unknown scene '{s}': expected one of {SCENES:?}"));
-        }
-    }
-    for m in &o.materials {
-        if presets::lookup(m).is_none() {
-            return Err(format!(
-                "unknown material '{m}': expected one of {:?}",
-                presets::names()
-            ));
-        }
-    }
+    common::check_names(&o.scenes, &SCENES, &o.materials)?;
     for p in &o.paths {
         if !["cpu", "gpu", "reference"].contains(&p.as_str()) {
             return Err(format!(
@@ -165,113 +139,24 @@ fn parse_args() -> Result<Opts, String> {
     Ok(o)
 }
 
-/// target/ of this build: the command-line binary lives in target/PROFILE/.
-fn target_dir() -> PathBuf {
-    let bin = Path::new(env!("CARGO_BIN_EXE_matedit"));
-    bin.parent()
-        .and_then(Path::parent)
-        .map(Path::to_path_buf)
-        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("target"))
-}
-
-fn shared_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared")
-}
-
-fn median(v: &[f64]) -> f64 {
-    let mut v = v.to_vec();
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n == 0 {
-        f64::NAN
-    } else if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        (v[n / 2 - 1] + v[n / 2]) / 2.0
-    }
-}
-
-/// splitmix64 stream, uniform in [-1, 1).
-fn signed_uniform(seed: u64) -> impl FnMut() -> f32 {
-    let mut state = seed;
-    move || {
-        state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = state;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^= z >> 31;
-        ((z >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
-    }
-}
-
 // ---------------------------------------------------------------------------------------
 // machine and inputs
 
-fn machine() -> Value {
-    let info = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
-    let field = |name: &str| {
-        info.lines()
-            .find(|l| l.starts_with(name))
-            .and_then(|l| l.split_once(':'))
-            .map(|(_, v)| v.trim().to_string())
-    };
-    let model = field("model name").unwrap_or_else(|| "unknown".into());
-    let flags = field("flags").unwrap_or_default();
-    let simd: Vec<&str> = ["avx512f", "avx2", "fma"]
-        .into_iter()
-        .filter(|f| flags.split_whitespace().any(|x| x == *f))
-        .collect();
-    let cores = std::thread::available_parallelism().map_or(0, |n| n.get());
-    json!({"cpu": model, "hardware_threads": cores, "simd": simd.join(" ")})
-}
-
 /// The env map: a real HDR map downsampled to 64 x 128, else the built-in sky.
 fn load_env(opts: &Opts) -> (EnvMap, String) {
-    let (h, w) = ENV_SIZE;
-    let path = opts.env.clone().or_else(|| {
-        let mut maps: Vec<PathBuf> = std::fs::read_dir(shared_dir().join("data/envmaps"))
-            .ok()?
-            .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| p.extension().is_some_and(|x| x.eq_ignore_ascii_case("exr")))
-            .collect();
-        maps.sort();
-        maps.into_iter().next()
-    });
-    let sky = || {
-        (
-            matedit::defaults::procedural_env(h, w, Convention::Equirect),
-            format!("built-in procedural sky, {h}x{w}"),
-        )
-    };
+    let path = opts
+        .env
+        .clone()
+        .or_else(|| common::envmap_files().into_iter().next());
     let Some(path) = path else {
         println!("env: no ../shared/data/envmaps/*.exr; using the built-in sky");
-        return sky();
+        return common::builtin_sky();
     };
-    let loaded = matedit::io::load_env(&path, Convention::Equirect).and_then(|l| {
-        let (fh, fw) = (l.env.height, l.env.width);
-        matedit::io::resample::fit(
-            l.env,
-            matedit::io::EnvSize::Size {
-                height: h,
-                width: w,
-            },
-            &path,
-        )
-        .map(|e| (e, fh, fw, l.clamped))
-    });
-    match loaded {
-        Ok((env, fh, fw, clamped)) => {
-            let name = path.file_name().unwrap_or_default().to_string_lossy();
-            (
-                env,
-                format!(
-                    "{name} ({fh}x{fw}, {clamped} negative values clamped), downsampled to {h}x{w}"
-                ),
-            )
-        }
+    match common::load_env_file(&path) {
+        Ok(l) => (l.env, l.desc),
         Err(e) => {
             println!("env: {e}; using the built-in sky");
-            sky()
+            common::builtin_sky()
         }
     }
 }
@@ -284,34 +169,8 @@ fn normals_of(scene: &str) -> NormalMap {
     }
 }
 
-fn upstream_for(w: usize, h: usize) -> Image {
-    let mut next = signed_uniform(UPSTREAM_SEED);
-    Image {
-        width: w,
-        height: h,
-        pixels: (0..w * h).map(|_| [next(), next(), next()]).collect(),
-    }
-}
-
 // ---------------------------------------------------------------------------------------
 // errors against the reference
-
-/// max |got - want| / max |want| (0 / 0 = 0).
-fn rel_err(got: impl Iterator<Item = f64>, want: impl Iterator<Item = f64>) -> f64 {
-    let (mut err, mut scale) = (0.0f64, 0.0f64);
-    for (g, w) in got.zip(want) {
-        err = err.max((g - w).abs());
-        scale = scale.max(w.abs());
-        if !g.is_finite() {
-            err = f64::INFINITY;
-        }
-    }
-    if err == 0.0 { 0.0 } else { err / scale }
-}
-
-fn flat3<T: Copy + Into<f64>>(v: &[[T; 3]]) -> impl Iterator<Item = f64> + '_ {
-    v.iter().flatten().map(|&x| x.into())
-}
 
 /// The reference's results for one scene and material.
 struct Truth {
@@ -464,124 +323,6 @@ fn time_renderer(
 // ---------------------------------------------------------------------------------------
 // command line and peers: files
 
-fn write(path: &Path, bytes: &[u8]) {
-    std::fs::write(path, bytes).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-}
-
-fn read_npy(path: &Path) -> Result<npy::NpyArray, String> {
-    let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    npy::parse(&bytes).map_err(|e| format!("{}: {e}", path.display()))
-}
-
-/// The arrays of an uncompressed `.npz` (a zip of `.npy` files, as `numpy.savez` writes),
-/// found through the zip's central directory.
-fn read_npz(path: &Path) -> Result<BTreeMap<String, npy::NpyArray>, String> {
-    let b = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let bad = |m: &str| format!("{}: {m}", path.display());
-    let u16_at = |o: usize| {
-        b.get(o..o + 2)
-            .map(|x| u16::from_le_bytes([x[0], x[1]]) as usize)
-            .ok_or_else(|| bad("truncated zip"))
-    };
-    let u32_at = |o: usize| {
-        b.get(o..o + 4)
-            .map(|x| u32::from_le_bytes([x[0], x[1], x[2], x[3]]) as usize)
-            .ok_or_else(|| bad("truncated zip"))
-    };
-    let eocd = (0..=b.len().saturating_sub(22))
-        .rev()
-        .find(|&o| b[o..].starts_with(b"PK\x05\x06"))
-        .ok_or_else(|| bad("no zip end record"))?;
-    let entries = u16_at(eocd + 10)?;
-    let mut cd = u32_at(eocd + 16)?;
-    if entries == 0xffff || cd == 0xffff_ffff {
-        return Err(bad("zip64 archives are not read here"));
-    }
-    let mut out = BTreeMap::new();
-    for _ in 0..entries {
-        if !b.get(cd..).is_some_and(|x| x.starts_with(b"PK\x01\x02")) {
-            return Err(bad("bad zip central directory"));
-        }
-        let method = u16_at(cd + 10)?;
-        let (name_len, extra_len, comment_len) =
-            (u16_at(cd + 28)?, u16_at(cd + 30)?, u16_at(cd + 32)?);
-        let local = u32_at(cd + 42)?;
-        let name = b
-            .get(cd + 46..cd + 46 + name_len)
-            .map(|n| String::from_utf8_lossy(n).into_owned())
-            .ok_or_else(|| bad("truncated zip"))?;
-        if method != 0 || local == 0xffff_ffff {
-            return Err(bad(&format!(
-                "{name}: compressed or zip64 entries are not read here"
-            )));
-        }
-        if !b.get(local..).is_some_and(|x| x.starts_with(b"PK\x03\x04")) {
-            return Err(bad("bad zip local header"));
-        }
-        let data = local + 30 + u16_at(local + 26)? + u16_at(local + 28)?;
-        // the .npy header says how much data follows; the rest of the zip is ignored
-        let arr = npy::parse(b.get(data..).unwrap_or_default()).map_err(|e| bad(&e))?;
-        out.insert(name.trim_end_matches(".npy").to_string(), arr);
-        cd += 46 + name_len + extra_len + comment_len;
-    }
-    Ok(out)
-}
-
-struct Files {
-    /// The temporary folder, removed when dropped (None with --keep).
-    _temp: Option<tempfile::TempDir>,
-    dir: PathBuf,
-    normals: PathBuf,
-    env: PathBuf,
-    material: PathBuf,
-    upstream: PathBuf,
-}
-
-fn write_inputs(scene: &Scene, upstream: &Image, keep: Option<PathBuf>) -> Files {
-    let (temp, dir) = match keep {
-        Some(d) => {
-            std::fs::create_dir_all(&d).unwrap_or_else(|e| panic!("{}: {e}", d.display()));
-            (None, d)
-        }
-        None => {
-            let t = tempfile::Builder::new()
-                .prefix("matedit-bench-")
-                .tempdir()
-                .expect("temp folder");
-            let d = t.path().to_path_buf();
-            (Some(t), d)
-        }
-    };
-    let p = |n: &str| dir.join(n);
-    let (normals, env, material, up) = (
-        p("normals.npy"),
-        p("env.npy"),
-        p("ctrl.json"),
-        p("upstream.npy"),
-    );
-    let n = &scene.normals;
-    write(&normals, &npy::encode_rgb(n.width, n.height, &n.normals));
-    let e = &scene.env;
-    write(&env, &npy::encode_rgb(e.width, e.height, &e.texels));
-    // {"name", "ctrl": [108]}: the command line's material file and the peers' CTRL
-    write(
-        &material,
-        &matedit::io::json::encode_material(&scene.material, None),
-    );
-    write(
-        &up,
-        &npy::encode_rgb(upstream.width, upstream.height, &upstream.pixels),
-    );
-    Files {
-        _temp: temp,
-        dir,
-        normals,
-        env,
-        material,
-        upstream: up,
-    }
-}
-
 /// Runs a command to completion; its wall seconds, or its stderr's tail on failure.
 fn run_timed(cmd: &mut Command) -> Result<f64, String> {
     let s = Instant::now();
@@ -671,48 +412,11 @@ fn cli_mtime() -> Option<std::time::SystemTime> {
         .ok()
 }
 
-/// Whether python3 can import `module`.
-fn python_has(module: &str) -> bool {
-    Command::new("python3")
-        .args(["-c", &format!("import {module}")])
-        .output()
-        .is_ok_and(|o| o.status.success())
-}
-
-/// time_peers.py on the input files: its JSON line.
-fn run_peers(f: &Files, peers: &[String], reps: usize) -> Result<Value, String> {
-    let script = shared_dir().join("peers/time_peers.py");
-    let out = Command::new("python3")
-        .arg(&script)
-        .args([&f.normals, &f.env, &f.material, &f.upstream])
-        .args(["--peers", &peers.join(","), "--reps", &reps.to_string()])
-        .output()
-        .map_err(|e| format!("cannot run python3: {e}"))?;
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let line = stdout
-        .lines()
-        .rev()
-        .find(|l| l.trim_start().starts_with('{'));
-    match line {
-        Some(l) if out.status.success() => {
-            serde_json::from_str(l).map_err(|e| format!("time_peers.py printed {l:?}: {e}"))
-        }
-        _ => Err(format!(
-            "time_peers.py failed ({}): {}",
-            out.status,
-            String::from_utf8_lossy(&out.stderr)
-                .lines()
-                .last()
-                .unwrap_or("")
-        )),
-    }
-}
-
 /// A peer's image and gradients (left beside the normals by time_peers.py) against the
 /// reference: (fwd errors, fb errors).
 fn peer_errors(f: &Files, peer: &str, truth: &Truth) -> (Value, Value) {
-    let img = match read_npy(&f.dir.join(format!("peer_{peer}.npy"))) {
-        Ok(a) => a.data,
+    let img = match common::read_peer_image(f, peer) {
+        Ok(img) => img,
         Err(e) => return (json!({"unread": e}), json!({"unread": e})),
     };
     let fwd = errors(
@@ -722,18 +426,16 @@ fn peer_errors(f: &Files, peer: &str, truth: &Truth) -> (Value, Value) {
             grads: None,
         },
     );
-    let fb = match read_npz(&f.dir.join(format!("peer_{peer}_grads.npz"))) {
-        Ok(g) => match (g.get("d_env"), g.get("d_normals"), g.get("d_ctrl")) {
-            (Some(e), Some(n), Some(c)) => errors(
-                truth,
-                Got {
-                    image: &img,
-                    grads: Some((&e.data, &n.data, &c.data)),
-                },
-            ),
-            _ => json!({"unread": format!("arrays {:?}", g.keys().collect::<Vec<_>>())}),
-        },
-        Err(e) => {
+    let fb = match common::read_peer_grads(f, peer) {
+        Ok([e, n, c]) => errors(
+            truth,
+            Got {
+                image: &img,
+                grads: Some((&e, &n, &c)),
+            },
+        ),
+        Err(common::Unread::Arrays(keys)) => json!({"unread": format!("arrays {keys}")}),
+        Err(common::Unread::File(e)) => {
             let mut v = fwd.clone();
             v["grads_unread"] = json!(e);
             v
@@ -803,23 +505,10 @@ fn csv(records: &[Value]) -> String {
         "ratio_vs_cpu",
         "ratio_vs_cli",
     ];
-    let mut out = cols.join(",") + "\n";
-    for r in records {
-        let cell = |c: &str| -> String {
-            let v = match c.strip_prefix("err_") {
-                Some(k) => &r["errors"][k],
-                None => &r[c],
-            };
-            match v {
-                Value::Null => String::new(),
-                Value::String(s) => s.clone(),
-                other => other.to_string(),
-            }
-        };
-        out += &cols.iter().map(|c| cell(c)).collect::<Vec<_>>().join(",");
-        out.push('\n');
-    }
-    out
+    common::csv(records, &cols, |r, c| match c.strip_prefix("err_") {
+        Some(k) => &r["errors"][k],
+        None => &r[c],
+    })
 }
 
 fn main() {
@@ -830,20 +519,8 @@ fn main() {
             std::process::exit(2);
         }
     };
-    rayon::ThreadPoolBuilder::new()
-        .num_threads(opts.threads)
-        .build_global()
-        .expect("rayon's global pool is set once");
     let started = Instant::now();
-
-    let mach = machine();
-    println!(
-        "machine: {} ({} hardware threads; {}); {} rayon threads here and in the command line",
-        mach["cpu"].as_str().unwrap_or(""),
-        mach["hardware_threads"],
-        mach["simd"].as_str().unwrap_or(""),
-        opts.threads
-    );
+    let mach = common::set_up(opts.threads, " here and in the command line");
 
     // the renderers of the in-process paths
     let mut renderers: Vec<(String, Renderer)> = Vec::new();
@@ -868,16 +545,7 @@ fn main() {
     }
     let (env, env_desc) = load_env(&opts);
     println!("env: {env_desc}; equirect, orthographic camera");
-    let materials: Vec<Material> = opts
-        .materials
-        .iter()
-        .map(|m| presets::lookup(m).expect("checked"))
-        .collect();
-    for m in presets::all() {
-        if opts.materials.iter().any(|n| n == m.name) {
-            println!("material {}: {}", m.name, m.description);
-        }
-    }
+    let materials = common::materials(&opts.materials);
 
     // the command line and the peers
     let cli_devices: Vec<&str> = if opts.cli_reps == 0 {
@@ -889,28 +557,7 @@ fn main() {
             .filter(|p| *p != "reference")
             .collect()
     };
-    let peers_script = shared_dir().join("peers/time_peers.py");
-    let peers: Vec<String> = if opts.peers.is_empty() {
-        println!("peers: none asked");
-        Vec::new()
-    } else if !peers_script.is_file() {
-        println!("peers: skipped: no {}", peers_script.display());
-        Vec::new()
-    } else {
-        let (have, missing): (Vec<String>, Vec<String>) =
-            opts.peers.iter().cloned().partition(|p| python_has(p));
-        if !missing.is_empty() {
-            println!("peers: skipped {missing:?}: python3 cannot import them");
-        }
-        if !have.is_empty() {
-            println!(
-                "peers: {have:?} through {} (2 threads each, median of {})",
-                peers_script.display(),
-                opts.peer_reps
-            );
-        }
-        have
-    };
+    let peers = common::runnable_peers(&opts.peers, opts.peer_reps);
 
     let mut cli_built = cli_mtime();
     if !cli_devices.is_empty() {
