@@ -52,6 +52,8 @@ const KEEPS_FOR_TABLES: [usize; 3] = [16, 64, 0];
 const MAX_COST_SHARE: f64 = 0.5;
 /// The trials may spend this share of the exact layer's work.
 const ESTIMATE_BUDGET: f64 = 0.1;
+/// Culling is taken when it leaves at most this share of the pairs.
+const CULL_WORTH: f64 = 0.8;
 /// The first table resolution tried.
 const FIRST_TABLE: usize = 32;
 /// The cost of interpolating one pixel from a table, in pair evaluations.
@@ -132,6 +134,12 @@ pub fn choose(
 ) -> Result<Choice> {
     let prep = Prepared::new(scene);
     Ok(choose_plan(backend, &prep, scene, tol, upstream)?.0)
+}
+
+/// `v` (in (0, 1)) rounded down to 2 significant digits, in billionths.
+fn round2(v: f64) -> u64 {
+    let scale = 10f64.powi(v.log10().floor() as i32 - 1);
+    (((v / scale).floor() * scale * 1e9).round() as u64).max(1)
 }
 
 /// max |a - b| over max |b|.
@@ -242,7 +250,7 @@ impl<'a> Trial<'a> {
         upstream: Option<&'a Image>,
     ) -> Result<Self> {
         let truth = |sample: Prepared| -> Result<Truth> {
-            let exact = Plan::new(&sample, &scene.env, &Method::EXACT, &full.pixels);
+            let exact = Plan::new(backend, &sample, &scene.env, &Method::EXACT, &full.pixels)?;
             let image = exact.forward(backend)?;
             let grads = upstream.map(|u| exact.backward(backend, u)).transpose()?;
             Ok(Truth {
@@ -280,8 +288,14 @@ impl<'a> Trial<'a> {
                 Some(up) => {
                     let mask = texel_mask(&scene.env);
                     let pixels = full.clone();
-                    let exact =
-                        Plan::masked(&pixels, &scene.env, &Method::EXACT, &full.pixels, &mask);
+                    let exact = Plan::masked(
+                        backend,
+                        &pixels,
+                        &scene.env,
+                        &Method::EXACT,
+                        &full.pixels,
+                        &mask,
+                    )?;
                     let grads = exact.backward(backend, up)?;
                     Some(TexelTruth {
                         mask,
@@ -301,7 +315,13 @@ impl<'a> Trial<'a> {
         } else {
             &self.pixels
         };
-        let plan = Plan::new(&truth.sample, &self.scene.env, method, &self.full.pixels);
+        let plan = Plan::new(
+            self.backend,
+            &truth.sample,
+            &self.scene.env,
+            method,
+            &self.full.pixels,
+        )?;
         let image = plan.forward(self.backend)?;
         let mut e = Estimate {
             image: rel(&image.pixels, &truth.image.pixels),
@@ -319,7 +339,7 @@ impl<'a> Trial<'a> {
             }
             let env = &self.scene.env;
             let (mask, full) = (&texels.mask, &self.full.pixels);
-            let plan = Plan::masked(&texels.pixels, env, method, full, mask);
+            let plan = Plan::masked(self.backend, &texels.pixels, env, method, full, mask)?;
             let g = plan.backward(self.backend, up)?;
             e.d_env = Some(rel_masked(&g.d_env, &texels.grads.d_env, mask));
             e.d_ctrl = Some(rel_ctrl(&g.d_ctrl, &texels.grads.d_ctrl));
@@ -343,7 +363,7 @@ pub(crate) fn choose_plan<'a>(
     }
     let backward = upstream.is_some();
     let done = |method: Method, estimate: Estimate, cost: f64| {
-        let plan = Plan::new(prep, &scene.env, &method, &prep.pixels);
+        let plan = Plan::new(backend, prep, &scene.env, &method, &prep.pixels)?;
         let choice = Choice {
             method,
             estimate,
@@ -383,6 +403,7 @@ pub(crate) fn choose_plan<'a>(
         env_factor: f,
         keep: k,
         table,
+        cull: None,
     };
 
     // per pixel
@@ -486,5 +507,36 @@ pub(crate) fn choose_plan<'a>(
         }
     }
     let (m, e, cost) = best;
-    done(m, e, cost / exact_cost)
+    let chosen = Plan::new(backend, prep, &scene.env, &m, &prep.pixels)?;
+
+    // culling, for images: the choice with the lights each group of normals can do
+    // without, within what is left of the budget
+    let room = tol / SAFETY - e.max();
+    if !backward && prep.camera.is_orthographic() && room > 0.0 {
+        let culled_method = Method {
+            cull: Some(round2((0.9 * room).min(0.5))),
+            ..m
+        };
+        let culled = Plan::new(backend, prep, &scene.env, &culled_method, &prep.pixels)?;
+        let share = culled.cull_share();
+        if share < CULL_WORTH {
+            let ec = trial.estimate(&culled_method, tol)?;
+            if ec.max() * SAFETY <= tol {
+                let choice = Choice {
+                    method: culled_method,
+                    estimate: ec,
+                    cost: (cost / exact_cost * share).max(1e-9),
+                    tolerance: tol,
+                };
+                return Ok((choice, culled));
+            }
+        }
+    }
+    let choice = Choice {
+        method: m,
+        estimate: e,
+        cost: cost / exact_cost,
+        tolerance: tol,
+    };
+    Ok((choice, chosen))
 }

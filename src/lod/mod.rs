@@ -23,6 +23,7 @@
 //! gradient).
 
 mod choose;
+mod cull;
 mod light;
 mod table;
 
@@ -48,6 +49,9 @@ pub struct Method {
     /// Orthographic cameras: the resolution R of the normal table (None: every pixel is
     /// evaluated).
     pub table: Option<usize>,
+    /// Orthographic cameras: lights are culled per group of normals within this budget,
+    /// in billionths of the image's largest value (None: no culling).
+    pub cull: Option<u64>,
 }
 
 impl Method {
@@ -56,12 +60,18 @@ impl Method {
         env_factor: 1,
         keep: 0,
         table: None,
+        cull: None,
     };
+
+    /// The culling budget relative to the image's largest value (0 without culling).
+    pub fn cull_budget(&self) -> f64 {
+        self.cull.map_or(0.0, |b| b as f64 / 1e9)
+    }
 
     /// Whether this is the exact layer.
     pub fn is_exact(&self) -> bool {
         // keeping texels at full resolution beside a full-resolution map changes nothing
-        self.table.is_none() && self.env_factor == 1
+        self.table.is_none() && self.env_factor == 1 && self.cull.is_none()
     }
 
     /// Checks the parameters against a scene: a table needs an orthographic camera.
@@ -69,6 +79,12 @@ impl Method {
         if self.env_factor == 0 || self.env_factor > MAX_ENV_FACTOR {
             return Err(Error::Invalid(format!(
                 "method {self}: the block side must be 1 to {MAX_ENV_FACTOR}"
+            )));
+        }
+        if self.cull.is_some() && !scene.camera.is_orthographic() {
+            return Err(Error::Invalid(format!(
+                "method {self}: culling needs an orthographic camera (the view direction must \
+                 be the same for every pixel)"
             )));
         }
         if let Some(r) = self.table {
@@ -106,6 +122,9 @@ impl std::fmt::Display for Method {
         if self.keep > 0 {
             parts.push(format!("keep{}", self.keep));
         }
+        if self.cull.is_some() {
+            parts.push(format!("cull{:e}", self.cull_budget()));
+        }
         if parts.is_empty() {
             f.write_str("exact")
         } else {
@@ -123,14 +142,15 @@ impl std::str::FromStr for Method {
             format!(
                 "unknown method '{s}': expected 'exact' or parts joined by '+': envF (blocks of \
                  F x F texels), keepK (the K brightest texels kept), tableR (an R x R normal \
-                 table), e.g. table96+env2+keep16"
+                 table), cullB (lights culled within B of the largest value), e.g. \
+                 table96+env2+keep16"
             )
         };
         let mut m = Method::EXACT;
         if s == "exact" {
             return Ok(m);
         }
-        let (mut env, mut keep, mut table) = (false, false, false);
+        let (mut env, mut keep, mut table, mut cull) = (false, false, false, false);
         for part in s.split('+') {
             let num = |prefix: &str| -> Option<usize> { part.strip_prefix(prefix)?.parse().ok() };
             if let (Some(f), false) = (num("env"), env) {
@@ -142,6 +162,18 @@ impl std::str::FromStr for Method {
             } else if let (Some(r), false) = (num("table"), table) {
                 table = true;
                 m.table = Some(r);
+            } else if let (Some(b), false) = (
+                part.strip_prefix("cull")
+                    .and_then(|b| b.parse::<f64>().ok()),
+                cull,
+            ) {
+                cull = true;
+                if !(b > 0.0 && b < 1.0) {
+                    return Err(format!(
+                        "method '{s}': the culling budget must be in (0, 1), e.g. cull1e-4"
+                    ));
+                }
+                m.cull = Some(((b * 1e9).round() as u64).max(1));
             } else {
                 return Err(bad());
             }
@@ -164,7 +196,7 @@ impl std::str::FromStr for Method {
 pub fn render(backend: &dyn Backend, scene: &Scene, method: &Method) -> Result<Image> {
     method.validate(scene)?;
     let prep = Prepared::new(scene);
-    Plan::new(&prep, &scene.env, method, &prep.pixels).forward(backend)
+    Plan::new(backend, &prep, &scene.env, method, &prep.pixels)?.forward(backend)
 }
 
 /// The gradients of `scene` under `method`, for upstream dLoss/dImage `upstream`: the
@@ -183,7 +215,7 @@ pub fn backward(
         )));
     }
     let prep = Prepared::new(scene);
-    Plan::new(&prep, &scene.env, method, &prep.pixels).backward(backend, upstream)
+    Plan::new(backend, &prep, &scene.env, method, &prep.pixels)?.backward(backend, upstream)
 }
 
 /// The image of `scene` by the cheapest method whose estimated error is within `tol`, and

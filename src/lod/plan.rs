@@ -8,6 +8,7 @@ use crate::prepare::{PixelRec, Prepared};
 use crate::scene::{Gradients, Image};
 
 use super::Method;
+use super::cull::Groups;
 use super::light::{Lights, lights};
 use super::table::{Grid, Table};
 
@@ -16,12 +17,15 @@ struct Parts {
     lights: Lights,
     /// Every scene a pass runs; the fields below index into it.
     scenes: Vec<Prepared>,
-    /// The block lights on the pixels evaluated one by one (all without a table).
-    blocks: usize,
+    /// The block lights on the pixels evaluated one by one (all without a table): one
+    /// scene, or one per group of normals when lights are culled.
+    blocks: Vec<usize>,
     /// The kept texels on every pixel.
     kept: Option<usize>,
-    /// The table and its nodes (with the block lights).
-    table: Option<(Table, usize)>,
+    /// The table and its nodes with the block lights (one scene, or one per group).
+    table: Option<(Table, Vec<usize>)>,
+    /// The share of the per-pixel pairs above the horizon that culling kept (1 without).
+    cull_share: f64,
 }
 
 /// What a method makes of one prepared scene.
@@ -35,33 +39,30 @@ impl<'a> Plan<'a> {
     /// scene's pixels, of which `prep`'s may be a sample, so that a sample sees the grid
     /// the whole image would).
     pub fn new(
+        backend: &dyn Backend,
         prep: &'a Prepared,
         env: &EnvMap,
         method: &Method,
         grid_pixels: &[PixelRec],
-    ) -> Self {
+    ) -> Result<Self> {
         if method.is_exact() {
-            return Plan { prep, parts: None };
+            return Ok(Plan { prep, parts: None });
         }
-        Plan::with_lights(
-            prep,
-            env,
-            method,
-            grid_pixels,
-            lights(env, method.env_factor, method.keep),
-        )
+        let lights = lights(env, method.env_factor, method.keep);
+        Plan::with_lights(backend, prep, env, method, grid_pixels, lights)
     }
 
     /// [`Plan::new`] for the texels in `mask` alone (one flag per texel of the map): only
     /// the blocks holding some of them, only the kept texels among them. dLoss/dL of those
     /// texels is as with every texel (the layer is linear in L); the rest is not.
     pub fn masked(
+        backend: &dyn Backend,
         prep: &'a Prepared,
         env: &EnvMap,
         method: &Method,
         grid_pixels: &[PixelRec],
         mask: &[bool],
-    ) -> Self {
+    ) -> Result<Self> {
         let mut l = lights(env, method.env_factor, method.keep);
         let mut used = vec![false; l.blocks.len()];
         for (&(b, _), _) in l.share.iter().zip(mask).filter(|(_, m)| **m) {
@@ -69,16 +70,17 @@ impl<'a> Plan<'a> {
         }
         l.blocks.retain(|b| used[b.index]);
         l.kept.retain(|k| mask[k.index]);
-        Plan::with_lights(prep, env, method, grid_pixels, l)
+        Plan::with_lights(backend, prep, env, method, grid_pixels, l)
     }
 
     fn with_lights(
+        backend: &dyn Backend,
         prep: &'a Prepared,
         env: &EnvMap,
         method: &Method,
         grid_pixels: &[PixelRec],
         lights: Lights,
-    ) -> Self {
+    ) -> Result<Self> {
         let (w, h) = (prep.width, prep.height);
         let block_scene = |pixels: Vec<PixelRec>| {
             Prepared::from_lights(
@@ -101,14 +103,10 @@ impl<'a> Plan<'a> {
             Some(t) => t.left.iter().map(|&k| prep.pixels[k]).collect(),
             None => prep.pixels.clone(),
         };
-        scenes.push(block_scene(per_pixel));
-        let blocks = 0;
-        let table = table.map(|t| {
-            scenes.push(t.nodes_scene(&scenes[blocks]));
-            (t, scenes.len() - 1)
-        });
-        let kept = (!lights.kept.is_empty()).then(|| {
-            scenes.push(Prepared::from_lights(
+        let block_scene = block_scene(per_pixel);
+        let nodes = table.as_ref().map(|t| t.nodes_scene(&block_scene));
+        let kept_scene = (!lights.kept.is_empty()).then(|| {
+            Prepared::from_lights(
                 w,
                 h,
                 prep.pixels.clone(),
@@ -117,10 +115,50 @@ impl<'a> Plan<'a> {
                 &lights.kept,
                 &prep.ctrl,
                 prep.camera,
-            ));
+            )
+        });
+        let mut cull_share = 1.0;
+        // culling: each scene of block lights as groups of normals, each with its lights
+        let (block_scenes, node_scenes) = match method.cull {
+            None => (vec![block_scene], nodes.map(|n| vec![n])),
+            Some(_) => {
+                let full = prep.with_pixels(w, h, grid_pixels.to_vec());
+                let groups = Groups::new();
+                let largest =
+                    groups.largest_value(backend, &full, &block_scene, kept_scene.as_ref())?;
+                let budget = method.cull_budget() * largest;
+                let (block_groups, [kept_b, all_b]) = groups.cull(&block_scene, budget);
+                let (node_groups, [kept_n, all_n]) = match &nodes {
+                    Some(n) => {
+                        let (g, counts) = groups.cull(n, budget);
+                        (Some(g), counts)
+                    }
+                    None => (None, [0, 0]),
+                };
+                if all_b + all_n > 0 {
+                    cull_share = (kept_b + kept_n) as f64 / (all_b + all_n) as f64;
+                }
+                (block_groups, node_groups)
+            }
+        };
+        let mut blocks = Vec::new();
+        for s in block_scenes {
+            scenes.push(s);
+            blocks.push(scenes.len() - 1);
+        }
+        let table = table.map(|t| {
+            let mut at = Vec::new();
+            for s in node_scenes.unwrap_or_default() {
+                scenes.push(s);
+                at.push(scenes.len() - 1);
+            }
+            (t, at)
+        });
+        let kept = kept_scene.map(|s| {
+            scenes.push(s);
             scenes.len() - 1
         });
-        Plan {
+        Ok(Plan {
             prep,
             parts: Some(Parts {
                 lights,
@@ -128,8 +166,15 @@ impl<'a> Plan<'a> {
                 blocks,
                 kept,
                 table,
+                cull_share,
             }),
-        }
+        })
+    }
+
+    /// The share of the block lights' pairs above the horizon that culling kept (1
+    /// without culling).
+    pub fn cull_share(&self) -> f64 {
+        self.parts.as_ref().map_or(1.0, |p| p.cull_share)
     }
 
     /// The image.
@@ -140,9 +185,16 @@ impl<'a> Plan<'a> {
                 .remove(0));
         };
         let images = backend.render_prepared(&p.scenes)?;
-        let mut image = images[p.blocks].clone();
+        let mut image = Image::zeros(self.prep.width, self.prep.height);
+        for &b in &p.blocks {
+            add(&mut image.pixels, &images[b].pixels);
+        }
         if let Some((t, nodes)) = &p.table {
-            t.interpolate(&images[*nodes].pixels, &mut image.pixels);
+            let mut values = vec![[0.0f32; 3]; t.normals.len()];
+            for &n in nodes {
+                add(&mut values, &images[n].pixels);
+            }
+            t.interpolate(&values, &mut image.pixels);
         }
         if let Some(k) = p.kept {
             add(&mut image.pixels, &images[k].pixels);
@@ -161,28 +213,39 @@ impl<'a> Plan<'a> {
                 )?
                 .remove(0));
         };
+        let node_up = p.table.as_ref().map(|(t, _)| Image {
+            width: t.normals.len(),
+            height: 1,
+            pixels: t.scatter(&upstream.pixels),
+        });
         let ups: Vec<Image> = (0..p.scenes.len())
             .map(|i| match &p.table {
-                Some((t, nodes)) if i == *nodes => Image {
-                    width: t.normals.len(),
-                    height: 1,
-                    pixels: t.scatter(&upstream.pixels),
-                },
+                Some((_, nodes)) if nodes.contains(&i) => node_up.clone().expect("a table"),
                 _ => upstream.clone(),
             })
             .collect();
         let grads = backend.backward_prepared(&p.scenes, &ups)?;
-        let a = &grads[p.blocks];
-        let mut d_blocks = a.d_env.clone();
-        let mut d_normals = a.d_normals.clone();
-        let mut d_ctrl = a.d_ctrl;
-        if let Some((t, nodes)) = &p.table {
-            let g = &grads[*nodes];
+        let mut d_blocks = vec![[0.0f32; 3]; p.lights.rows * p.lights.cols];
+        let mut d_normals = vec![[0.0f32; 3]; self.prep.width * self.prep.height];
+        let mut d_ctrl = [0.0f32; crate::N_PARAMS];
+        for &b in &p.blocks {
+            let g = &grads[b];
             add(&mut d_blocks, &g.d_env);
+            add(&mut d_normals, &g.d_normals);
             add_ctrl(&mut d_ctrl, &g.d_ctrl);
-            let jac = backend
-                .normal_jacobians(std::slice::from_ref(&p.scenes[*nodes]))?
-                .remove(0);
+        }
+        if let Some((t, nodes)) = &p.table {
+            let node_scenes: Vec<Prepared> = nodes.iter().map(|&n| p.scenes[n].clone()).collect();
+            let jacs = backend.normal_jacobians(&node_scenes)?;
+            let mut jac = vec![[[0.0f32; 3]; 3]; t.normals.len()];
+            for (&n, js) in nodes.iter().zip(jacs) {
+                let g = &grads[n];
+                add(&mut d_blocks, &g.d_env);
+                add_ctrl(&mut d_ctrl, &g.d_ctrl);
+                for (px, j) in p.scenes[n].pixels.iter().zip(js) {
+                    jac[px.index] = j;
+                }
+            }
             t.normal_gradients(&upstream.pixels, &jac, &mut d_normals);
         }
         let d_kept = p.kept.map(|k| {
