@@ -123,7 +123,7 @@ struct SceneArgs {
     /// Approximate: the cheapest level of detail whose estimated relative error (max |I - I_exact| over max I_exact; with `grad`, each gradient's too) is within REL, chosen per scene and printed on stderr [default: exact].
     #[arg(long, value_name = "REL", value_parser = parse_tolerance, conflicts_with = "method")]
     tolerance: Option<f64>,
-    /// A level of detail by name: 'exact', or parts joined by '+': envF (the map in F x F blocks), keepK (its K brightest texels kept), tableR (an R x R table of normals; orthographic only), e.g. table128+keep16.
+    /// A level of detail by name: 'exact', or parts joined by '+': envF (the map in F x F blocks), keepK (its K brightest texels kept), tableR (an R x R table of normals), cullB (lights culled within B of the largest value); tables and culling need an orthographic camera. E.g. table128+keep16.
     #[arg(long, value_name = "METHOD")]
     method: Option<lod::Method>,
     /// A JSON manifest listing several scenes, rendered in one batch (see docs/FORMATS.md). Options above are defaults for what it leaves out.
