@@ -27,7 +27,7 @@ use crate::prepare::Prepared;
 use crate::scene::{Gradients, Image, Scene};
 
 use super::light::lights;
-use super::plan::{Plan, sampled};
+use super::plan::Plan;
 use super::table::{Grid, Table};
 use super::{Method, TABLE_SIZES};
 
@@ -142,6 +142,19 @@ fn round2(v: f64) -> u64 {
     (((v / scale).floor() * scale * 1e9).round() as u64).max(1)
 }
 
+/// The pixels at `positions` of `prep.pixels`, as a one-row image of them.
+fn compact(prep: &Prepared, positions: &[usize]) -> Prepared {
+    let pixels = positions
+        .iter()
+        .enumerate()
+        .map(|(i, &k)| crate::prepare::PixelRec {
+            index: i,
+            ..prep.pixels[k]
+        })
+        .collect();
+    prep.with_pixels(positions.len(), 1, pixels)
+}
+
 /// max |a - b| over max |b|.
 fn rel(a: &[[f32; 3]], b: &[[f32; 3]]) -> f64 {
     let (mut diff, mut scale) = (0.0f64, 0.0f64);
@@ -212,7 +225,10 @@ fn rel_masked(a: &[[f32; 3]], b: &[[f32; 3]], mask: &[bool]) -> f64 {
 
 /// Sampled pixels and the exact layer's results on them.
 struct Truth {
+    /// The sample as a one-row image, pixel k at column k.
     sample: Prepared,
+    /// The upstream gradient on it.
+    upstream: Option<Image>,
     image: Image,
     grads: Option<Gradients>,
 }
@@ -249,18 +265,31 @@ impl<'a> Trial<'a> {
         full: &'a Prepared,
         upstream: Option<&'a Image>,
     ) -> Result<Self> {
-        let truth = |sample: Prepared| -> Result<Truth> {
+        let truth = |positions: &[usize]| -> Result<Truth> {
+            let sample = compact(full, positions);
+            let upstream = upstream.map(|u| Image {
+                width: positions.len(),
+                height: 1,
+                pixels: positions
+                    .iter()
+                    .map(|&k| u.pixels[full.pixels[k].index])
+                    .collect(),
+            });
             let exact = Plan::new(backend, &sample, &scene.env, &Method::EXACT, &full.pixels)?;
             let image = exact.forward(backend)?;
-            let grads = upstream.map(|u| exact.backward(backend, u)).transpose()?;
+            let grads = upstream
+                .as_ref()
+                .map(|u| exact.backward(backend, u))
+                .transpose()?;
             Ok(Truth {
                 sample,
+                upstream,
                 image,
                 grads,
             })
         };
         let positions = sample_positions(full.pixels.len());
-        let pixels = truth(sampled(full, &positions))?;
+        let pixels = truth(&positions)?;
         // for the tables: every 8th sampled pixel, and as many again of the brightest
         // others, where a table's error concentrates (the highlights)
         let mut table_positions: Vec<usize> = positions.iter().copied().step_by(8).collect();
@@ -268,8 +297,8 @@ impl<'a> Trial<'a> {
             .iter()
             .enumerate()
             .filter(|(j, _)| j % 8 != 0)
-            .map(|(_, &k)| {
-                let v = pixels.image.pixels[full.pixels[k].index];
+            .map(|(j, &k)| {
+                let v = pixels.image.pixels[j];
                 (v[0].max(v[1]).max(v[2]), k)
             })
             .collect();
@@ -283,7 +312,7 @@ impl<'a> Trial<'a> {
             full,
             upstream,
             pixels,
-            tables: truth(sampled(full, &table_positions))?,
+            tables: truth(&table_positions)?,
             texels: match upstream {
                 Some(up) => {
                     let mask = texel_mask(&scene.env);
@@ -331,8 +360,10 @@ impl<'a> Trial<'a> {
         if e.image * SAFETY > tol {
             return Ok(e);
         }
-        if let (Some(up), Some(exact), Some(texels)) = (self.upstream, &truth.grads, &self.texels) {
-            let g = plan.backward(self.backend, up)?;
+        if let (Some(up), Some(sample_up), Some(exact), Some(texels)) =
+            (self.upstream, &truth.upstream, &truth.grads, &self.texels)
+        {
+            let g = plan.backward(self.backend, sample_up)?;
             e.d_normals = Some(rel(&g.d_normals, &exact.d_normals));
             if e.max() * SAFETY > tol {
                 return Ok(e);
@@ -510,9 +541,10 @@ pub(crate) fn choose_plan<'a>(
     let chosen = Plan::new(backend, prep, &scene.env, &m, &prep.pixels)?;
 
     // culling, for images: the choice with the lights each group of normals can do
-    // without, within what is left of the budget
+    // without, within what is left of the budget; not tried for a material with a
+    // constant (diffuse) lobe, which every light above the horizon reaches
     let room = tol / SAFETY - e.max();
-    if !backward && prep.camera.is_orthographic() && room > 0.0 {
+    if !backward && prep.camera.is_orthographic() && prep.const_lobes.is_empty() && room > 0.0 {
         let culled_method = Method {
             cull: Some(round2((0.9 * room).min(0.5))),
             ..m

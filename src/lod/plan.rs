@@ -275,9 +275,3 @@ fn add_ctrl(a: &mut [f32], b: &[f32]) {
         *x += y;
     }
 }
-
-/// `prep` restricted to the pixels at positions `sample`.
-pub(crate) fn sampled(prep: &Prepared, sample: &[usize]) -> Prepared {
-    let pixels = sample.iter().map(|&k| prep.pixels[k]).collect();
-    prep.with_pixels(prep.width, prep.height, pixels)
-}
