@@ -10,8 +10,9 @@
 //!   for every tolerance of `--tols` the method `lod::render_within` (`fwd`) and
 //!   `lod::backward_within` + `lod::render` of its choice (`fb`) pick, the choice timed
 //!   with it; median of `--reps` runs (`--big-reps` for the exact and the tolerance runs
-//!   of the 512 scenes, the longest), the `fwd` runs after a warm-up and the `fb` runs
-//!   after those; the tolerance runs come after every method has warmed the kernels;
+//!   of the 512 scenes and for any run over a second: the defaults' budget is about 15
+//!   minutes on 2 cores), the `fwd` runs after a warm-up and the `fb` runs after those;
+//!   the tolerance runs come after every method has warmed the kernels;
 //! - errors against the exact layer on the same path (`Method::EXACT`), per output: max
 //!   |x - x_exact| / max |x_exact| and mean |x - x_exact| / max |x_exact|; the exact path's
 //!   own error against the f64 reference is measured once, on the 128 sphere;
@@ -52,7 +53,8 @@ cargo bench --bench lod -- [OPTIONS]
   --tols LIST       tolerances for lod::render_within / backward_within; none: no such runs
                     [1e-2,1e-3,1e-4]
   --reps N          timed runs per method and pass [5]: fwd after a warm-up, then fb
-  --big-reps N      timed runs of the exact and the tolerance runs on the 512 scenes [3]
+  --big-reps N      timed runs of the exact and the tolerance runs on the 512 scenes,
+                    and of any run whose first timed run took over 1 s [2]
   --peers LIST      of drjit, numba, torch, or none; run on the 512 scenes [drjit,numba]
   --peer-reps N     timed runs per peer (time_peers.py --reps, after its warm-up) [1]
   --peer-envs N     the peers run with the first N env maps [1]
@@ -99,7 +101,7 @@ fn parse_args() -> Result<Opts, String> {
         methods: Vec::new(),
         tols: vec![1e-2, 1e-3, 1e-4],
         reps: 5,
-        big_reps: 3,
+        big_reps: 2,
         peers: list("drjit,numba"),
         peer_reps: 1,
         peer_envs: 1,
@@ -329,16 +331,30 @@ fn worst(errors: &Value) -> f64 {
 // ---------------------------------------------------------------------------------------
 // timing
 
-/// `reps` timed runs of `f`, after a warm-up run if `warm_up`: the seconds and the last
-/// result.
+/// A run taking longer than this (seconds) is timed `Reps::long` times.
+const LONG_S: f64 = 1.0;
+
+/// How many timed runs: `n`, or `long` where the first took over [`LONG_S`].
+#[derive(Clone, Copy)]
+struct Reps {
+    n: usize,
+    long: usize,
+}
+
+/// Timed runs of `f` (see [`Reps`]), after a warm-up run if `warm_up`: the seconds and the
+/// last result.
 fn timed<T>(
-    reps: usize,
+    reps: Reps,
     warm_up: bool,
     mut f: impl FnMut() -> matedit::Result<T>,
 ) -> matedit::Result<(Vec<f64>, T)> {
     let mut last = if warm_up { Some(f()?) } else { None };
-    let mut times = Vec::with_capacity(reps);
-    for _ in 0..reps.max(1) {
+    let mut times: Vec<f64> = Vec::with_capacity(reps.n);
+    let wanted = |t: &[f64]| match t.first() {
+        Some(&first) if first > LONG_S => reps.long,
+        _ => reps.n,
+    };
+    while times.len() < wanted(&times).max(1) {
         let s = Instant::now();
         last = Some(f()?);
         times.push(s.elapsed().as_secs_f64());
@@ -392,20 +408,22 @@ impl Rec {
 }
 
 /// The chart's grouping of a method: exact, env (blocks), env+keep, table, table+env
-/// (a table over blocks, kept texels or both), or peer.
+/// (a table over blocks, kept texels or both), cull (culling alone), or peer.
 fn family(method: &str) -> &'static str {
     if method.starts_with("peer-") {
         return "peer";
     }
-    match method.parse::<Method>() {
-        Ok(m) if m.is_exact() => "exact",
-        Ok(Method {
-            table: None, keep, ..
-        }) if keep > 0 => "env+keep",
-        Ok(Method { table: None, .. }) => "env",
-        Ok(m) if m.env_factor == 1 && m.keep == 0 => "table",
-        Ok(_) => "table+env",
-        Err(_) => "other",
+    let Ok(m) = method.parse::<Method>() else {
+        return "other";
+    };
+    match (m.table, m.env_factor > 1 || m.keep > 0) {
+        _ if m.is_exact() => "exact",
+        // culling alone (beside a table or blocks, those name the family)
+        (None, false) => "cull",
+        (None, true) if m.keep > 0 => "env+keep",
+        (None, true) => "env",
+        (Some(_), false) => "table",
+        (Some(_), true) => "table+env",
     }
 }
 
@@ -440,7 +458,7 @@ impl Case<'_> {
 type Pair<A, B> = (Vec<f64>, A, Vec<f64>, B);
 
 fn fwd_fb<A, B>(
-    reps: usize,
+    reps: Reps,
     warm_up: bool,
     fwd: impl FnMut() -> matedit::Result<A>,
     fb: impl FnMut() -> matedit::Result<B>,
@@ -460,13 +478,20 @@ fn measure(
 ) -> Option<(Vec<Rec>, [Vec<f64>; 4])> {
     let (scene, up) = (&case.scene, &case.upstream);
     let big = scene.normals.width * scene.normals.height >= 512 * 512;
-    // the exact and the tolerance runs of the 512 scenes are the longest
-    let big_reps = if big {
-        opts.big_reps.min(opts.reps)
-    } else {
-        opts.reps
+    let reps = Reps {
+        n: opts.reps,
+        long: opts.big_reps.min(opts.reps),
     };
-    let run = |m: &Method, reps: usize| {
+    // the exact and the tolerance runs of the 512 scenes are long: all of them
+    let big_reps = if big {
+        Reps {
+            n: reps.long,
+            ..reps
+        }
+    } else {
+        reps
+    };
+    let run = |m: &Method, reps: Reps| {
         fwd_fb(
             reps,
             true,
@@ -493,7 +518,7 @@ fn measure(
     ];
     print_pair(&recs[0], &recs[1]);
     for m in opts.methods.iter().filter(|m| !m.is_exact()) {
-        let pair = run(m, opts.reps).map(|(tf, img, tb, (img_b, g))| {
+        let pair = run(m, reps).map(|(tf, img, tb, (img_b, g))| {
             (
                 case.rec(m.to_string(), "fwd", tf, errors_of(&exact, &img, None)),
                 case.rec(m.to_string(), "fb", tb, errors_of(&exact, &img_b, Some(&g))),
@@ -840,12 +865,13 @@ fn csv(records: &[Value]) -> String {
 const CHART: (u32, u32) = (1280, 860);
 
 /// Colour and legend name of each family, in legend order.
-const FAMILIES: [(&str, RGBColor); 6] = [
+const FAMILIES: [(&str, RGBColor); 7] = [
     ("exact", RGBColor(0, 0, 0)),
     ("env", RGBColor(31, 119, 180)),
     ("env+keep", RGBColor(23, 190, 207)),
     ("table", RGBColor(44, 160, 44)),
     ("table+env", RGBColor(255, 127, 14)),
+    ("cull", RGBColor(200, 160, 0)),
     ("peer", RGBColor(148, 103, 189)),
 ];
 /// Tolerance lines and the marks of their choices, in `--tols` order.
@@ -928,6 +954,10 @@ macro_rules! with_marker {
                         c.filled(),
                     )
                 };
+                $body
+            }
+            "cull" => {
+                let $s = || TriangleMarker::new((0, 0), h + 2, c.stroke_width(2));
                 $body
             }
             // a tolerance's choice: a ring
@@ -1072,7 +1102,7 @@ where
             let (text, c, h) = match family {
                 "peer" => (
                     format!("peer {name} (error vs our exact)"),
-                    if k == 0 { c } else { RGBColor(140, 86, 75) },
+                    if k == 0 { c } else { RGBColor(127, 127, 127) },
                     5,
                 ),
                 "exact" => (format!("exact (error 0: drawn at {FLOOR:.0e})"), c, 4),
