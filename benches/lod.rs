@@ -65,7 +65,7 @@ cargo bench --bench lod -- [OPTIONS]
   --threads N       rayon threads [2, as the peers]
   --out DIR         where lod.json, lod.csv and the charts go [target/bench]
   --chart DIR       the same as --out DIR
-  --replot FILE     draw the charts (and write the csv) of a lod.json again, run nothing";
+  --replot FILE     draw the charts and write the csv of a lod.json again, run nothing";
 
 const SCENES: [&str; 4] = ["sphere128", "sphere256", "sphere512", "bumpy512"];
 const METHODS: &str = "exact,env2,env4,env8,env4+keep16,table32,table64,table128,table256,\
@@ -1093,6 +1093,10 @@ where
         let mut names: Vec<&str> = of.iter().map(|p| p.label.as_str()).collect();
         names.sort();
         names.dedup();
+        // a family only a tolerance chose still gets its legend entry
+        if names.is_empty() && pts.iter().any(|p| p.family == family) {
+            entries.push(((family, 3, c), family.to_string()));
+        }
         for (k, name) in names.iter().enumerate() {
             let xy: Vec<(f64, f64)> = of
                 .iter()
@@ -1227,7 +1231,8 @@ fn reference_check(cpu: &FastCpu, env: &Env, materials: &[Material]) -> Vec<Valu
     out
 }
 
-fn write_outputs(report: &Value, dir: &Path) {
+/// lod.csv and the charts in `dir`, and lod.json unless the report was read from it.
+fn write_outputs(report: &Value, dir: &Path, json_too: bool) {
     if let Err(e) = std::fs::create_dir_all(dir) {
         eprintln!("cannot create {}: {e}", dir.display());
         return;
@@ -1237,13 +1242,16 @@ fn write_outputs(report: &Value, dir: &Path) {
         .as_array()
         .map(|t| t.iter().filter_map(Value::as_f64).collect())
         .unwrap_or_default();
-    let (jp, cp) = (dir.join("lod.json"), dir.join("lod.csv"));
-    write(
-        &jp,
-        (serde_json::to_string_pretty(report).unwrap_or_default() + "\n").as_bytes(),
-    );
+    println!();
+    if json_too {
+        let jp = dir.join("lod.json");
+        let text = serde_json::to_string_pretty(report).unwrap_or_default() + "\n";
+        write(&jp, text.as_bytes());
+        println!("wrote {}", jp.display());
+    }
+    let cp = dir.join("lod.csv");
     write(&cp, csv(&records).as_bytes());
-    println!("\nwrote {} and {}", jp.display(), cp.display());
+    println!("wrote {}", cp.display());
     match register_font().and_then(|()| charts(&records, &tols, dir)) {
         Ok(paths) => {
             for p in paths {
@@ -1267,7 +1275,7 @@ fn main() {
                 eprintln!("lod bench: {}: {e}", file.display());
                 std::process::exit(2);
             });
-        write_outputs(&report, &opts.out);
+        write_outputs(&report, &opts.out, false);
         return;
     }
     let started = Instant::now();
@@ -1374,6 +1382,6 @@ fn main() {
         "notes": notes,
         "seconds_total": started.elapsed().as_secs_f64(),
     });
-    write_outputs(&report, &opts.out);
+    write_outputs(&report, &opts.out, true);
     println!("({:.0} s in all)", started.elapsed().as_secs_f64());
 }
