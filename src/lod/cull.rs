@@ -143,9 +143,9 @@ impl Groups {
 
     /// `scene` as one scene per group of its pixels, each with the lights the group cannot
     /// do without, so that each pixel's error is at most `budget` per channel; or `scene`
-    /// itself when that would save little. Also the pairs above the horizon it keeps, and
-    /// all of them (those below cost the kernels little: they skip them by blocks).
-    pub fn cull(&self, scene: &Prepared, budget: f64) -> (Vec<Prepared>, [usize; 2]) {
+    /// itself when that would keep most of the pairs above the horizon (those below cost
+    /// the kernels little: they skip them by blocks).
+    pub fn cull(&self, scene: &Prepared, budget: f64) -> Vec<Prepared> {
         let mut members: Vec<Vec<PixelRec>> = vec![Vec::new(); self.cones.len()];
         for p in &scene.pixels {
             members[group_of(p.n)].push(*p);
@@ -182,9 +182,9 @@ impl Groups {
             });
         }
         if pairs as f64 > WORTH * all_pairs as f64 {
-            return (vec![scene.clone()], [all_pairs; 2]);
+            return vec![scene.clone()];
         }
-        (groups, [pairs, all_pairs])
+        groups
     }
 }
 

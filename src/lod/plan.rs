@@ -24,8 +24,6 @@ struct Parts {
     kept: Option<usize>,
     /// The table and its nodes with the block lights (one scene, or one per group).
     table: Option<(Table, Vec<usize>)>,
-    /// The share of the per-pixel pairs above the horizon that culling kept (1 without).
-    cull_share: f64,
 }
 
 /// What a method makes of one prepared scene.
@@ -117,7 +115,6 @@ impl<'a> Plan<'a> {
                 prep.camera,
             )
         });
-        let mut cull_share = 1.0;
         // culling: each scene of block lights as groups of normals, each with its lights
         let (block_scenes, node_scenes) = match method.cull {
             None => (vec![block_scene], nodes.map(|n| vec![n])),
@@ -127,17 +124,8 @@ impl<'a> Plan<'a> {
                 let largest =
                     groups.largest_value(backend, &full, &block_scene, kept_scene.as_ref())?;
                 let budget = method.cull_budget() * largest;
-                let (block_groups, [kept_b, all_b]) = groups.cull(&block_scene, budget);
-                let (node_groups, [kept_n, all_n]) = match &nodes {
-                    Some(n) => {
-                        let (g, counts) = groups.cull(n, budget);
-                        (Some(g), counts)
-                    }
-                    None => (None, [0, 0]),
-                };
-                if all_b + all_n > 0 {
-                    cull_share = (kept_b + kept_n) as f64 / (all_b + all_n) as f64;
-                }
+                let block_groups = groups.cull(&block_scene, budget);
+                let node_groups = nodes.as_ref().map(|n| groups.cull(n, budget));
                 (block_groups, node_groups)
             }
         };
@@ -166,15 +154,8 @@ impl<'a> Plan<'a> {
                 blocks,
                 kept,
                 table,
-                cull_share,
             }),
         })
-    }
-
-    /// The share of the block lights' pairs above the horizon that culling kept (1
-    /// without culling).
-    pub fn cull_share(&self) -> f64 {
-        self.parts.as_ref().map_or(1.0, |p| p.cull_share)
     }
 
     /// The image.
