@@ -11,6 +11,9 @@ mod common;
 use common::{Rng, random_material, random_scene, upstream_for};
 use matedit::cpu::FastCpu;
 use matedit::lod::{self, Method};
+
+/// The chooser on scenes of any size (by default small ones are rendered exactly).
+const ALWAYS: lod::Chooser = lod::Chooser { min_pairs: 0.0 };
 use matedit::reference::Reference;
 use matedit::{
     Backend, Batch, Camera, Convention, EnvMap, Gradients, Image, Material, NormalMap, Renderer,
@@ -775,7 +778,7 @@ fn render_within_meets_the_tolerance() {
         let exact = lod::render(&cpu, &scene, &Method::EXACT).unwrap();
         for tol in [1e-2, 1e-3] {
             let what = format!("{name} render tol {tol:e}");
-            let (image, choice) = lod::render_within(&cpu, &scene, tol).unwrap();
+            let (image, choice) = ALWAYS.render_within(&cpu, &scene, tol).unwrap();
             check_choice(&what, &scene, &choice, tol);
             let e = rel(&image.pixels, &exact.pixels);
             eprintln!("{what}: measured error {e:.2e}");
@@ -787,7 +790,7 @@ fn render_within_meets_the_tolerance() {
                 "{what}"
             );
             assert_eq!(
-                lod::choose(&cpu, &scene, tol, None).unwrap(),
+                ALWAYS.choose(&cpu, &scene, tol, None).unwrap(),
                 choice,
                 "{what}"
             );
@@ -802,7 +805,7 @@ fn render_within_meets_the_tolerance() {
 fn backward_within_errors(what: &str, scene: &Scene, tol: f64) -> (lod::Choice, [f64; 4]) {
     let cpu = FastCpu::new().unwrap();
     let up = upstream(scene, 36);
-    let (grads, choice) = lod::backward_within(&cpu, scene, &up, tol).unwrap();
+    let (grads, choice) = ALWAYS.backward_within(&cpu, scene, &up, tol).unwrap();
     check_choice(what, scene, &choice, tol);
     let est = &choice.estimate;
     if !choice.method.is_exact() {
@@ -868,17 +871,22 @@ fn bad_tolerances_are_errors() {
     let scene = random_ortho(37, (12, 10), (8, 16));
     let up = upstream(&scene, 24);
     for tol in [0.0, -1.0, f64::NAN, f64::INFINITY, f64::NEG_INFINITY, -0.0] {
-        let e = lod::render_within(&cpu, &scene, tol).expect_err("render_within");
+        let e = ALWAYS
+            .render_within(&cpu, &scene, tol)
+            .expect_err("render_within");
         assert!(e.to_string().contains("tolerance"), "{tol}: {e}");
         assert!(
-            lod::backward_within(&cpu, &scene, &up, tol).is_err(),
+            ALWAYS.backward_within(&cpu, &scene, &up, tol).is_err(),
             "{tol}"
         );
-        assert!(lod::choose(&cpu, &scene, tol, Some(&up)).is_err(), "{tol}");
-        assert!(lod::choose(&cpu, &scene, tol, None).is_err(), "{tol}");
+        assert!(
+            ALWAYS.choose(&cpu, &scene, tol, Some(&up)).is_err(),
+            "{tol}"
+        );
+        assert!(ALWAYS.choose(&cpu, &scene, tol, None).is_err(), "{tol}");
     }
     // a huge tolerance is fine (whatever is chosen)
-    let (_, choice) = lod::render_within(&cpu, &scene, 1e6).unwrap();
+    let (_, choice) = ALWAYS.render_within(&cpu, &scene, 1e6).unwrap();
     check_choice("tol 1e6", &scene, &choice, 1e6);
 }
 
@@ -905,8 +913,8 @@ fn results_are_deterministic_across_runs_and_threads() {
     }
     let within = |n: usize| {
         pool(n).install(|| {
-            let (g, c) = lod::backward_within(&cpu, &scene, &up, 1e-2).unwrap();
-            let (i, d) = lod::render_within(&cpu, &scene, 1e-2).unwrap();
+            let (g, c) = ALWAYS.backward_within(&cpu, &scene, &up, 1e-2).unwrap();
+            let (i, d) = ALWAYS.render_within(&cpu, &scene, 1e-2).unwrap();
             (g, c, i, d)
         })
     };
@@ -1076,4 +1084,18 @@ fn culling_stays_within_its_bound_and_skips_work() {
     };
     let e = lod::render(&cpu, &persp, &method("cull1e-3")).unwrap_err();
     assert!(e.to_string().contains("orthographic"), "{e}");
+}
+
+#[test]
+fn small_scenes_are_rendered_exactly_without_an_estimate() {
+    // a 96 x 96 sphere against 32 x 64: below the default's pairs; the choice costs nothing
+    let cpu = FastCpu::new().unwrap();
+    let scene = sphere_scene(96, sun_env(32, 64, Convention::Equirect, 35, 2), glossy());
+    let (image, choice) = lod::render_within(&cpu, &scene, 1e-2).unwrap();
+    assert!(choice.method.is_exact(), "{choice}");
+    assert_eq!(choice.estimate.pixels, 0, "{choice}");
+    assert_eq!(image, lod::render(&cpu, &scene, &Method::EXACT).unwrap());
+    // the same scene with the estimate forced does approximate it
+    let forced = ALWAYS.choose(&cpu, &scene, 1e-2, None).unwrap();
+    assert!(!forced.method.is_exact(), "{forced}");
 }

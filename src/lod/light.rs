@@ -26,13 +26,15 @@ fn energy(l: [f32; 3], d_omega: f64) -> f64 {
     l.iter().map(|v| f64::from(v.abs())).sum::<f64>() * d_omega
 }
 
-/// The `keep` texels of `env` with the most energy (and some), in map order.
-pub(crate) fn brightest(env: &EnvMap, keep: usize) -> Vec<usize> {
-    let (h, w) = (env.height, env.width);
-    let mut ranked: Vec<(f64, usize)> = (0..h * w)
+/// The `keep` texels of `env` (solid angles `d_omega`) with the most energy (and some),
+/// in map order.
+fn brightest(env: &EnvMap, d_omega: &[f64], keep: usize) -> Vec<usize> {
+    if keep == 0 {
+        return Vec::new();
+    }
+    let mut ranked: Vec<(f64, usize)> = (0..env.texels.len())
         .filter_map(|i| {
-            let (_, d_omega) = env.convention.texel(i / w, i % w, h, w);
-            let e = energy(env.texels[i], d_omega);
+            let e = energy(env.texels[i], d_omega[i]);
             (e > 0.0).then_some((e, i))
         })
         .collect();
@@ -47,7 +49,11 @@ pub(crate) fn brightest(env: &EnvMap, keep: usize) -> Vec<usize> {
 pub(crate) fn lights(env: &EnvMap, factor: usize, keep: usize) -> Lights {
     let (h, w) = (env.height, env.width);
     let (rows, cols) = (h.div_ceil(factor), w.div_ceil(factor));
-    let kept_idx = brightest(env, keep);
+    let geometry: Vec<([f64; 3], f64)> = (0..h * w)
+        .map(|i| env.convention.texel(i / w, i % w, h, w))
+        .collect();
+    let d_omegas: Vec<f64> = geometry.iter().map(|g| g.1).collect();
+    let kept_idx = brightest(env, &d_omegas, keep);
     let mut is_kept = vec![false; h * w];
     for &i in &kept_idx {
         is_kept[i] = true;
@@ -69,7 +75,7 @@ pub(crate) fn lights(env: &EnvMap, factor: usize, keep: usize) -> Lights {
     for r in 0..h {
         for c in 0..w {
             let i = r * w + c;
-            let (dir, d_omega) = env.convention.texel(r, c, h, w);
+            let (dir, d_omega) = geometry[i];
             let l = env.texels[i].map(f64::from);
             let b = (r / factor) * cols + c / factor;
             block_of[i] = b as u32;
@@ -99,7 +105,7 @@ pub(crate) fn lights(env: &EnvMap, factor: usize, keep: usize) -> Lights {
             let (r, c) = (b / cols, b % cols);
             let w = if factor == 1 {
                 // the texel's own direction, bit for bit
-                env.convention.texel(r, c, h, w).0
+                geometry[b].0
             } else {
                 let len = dot(a.dir, a.dir).sqrt();
                 if len > 0.0 {
@@ -128,7 +134,7 @@ pub(crate) fn lights(env: &EnvMap, factor: usize, keep: usize) -> Lights {
             let s = if is_kept[i] || d_block <= 0.0 {
                 0.0
             } else {
-                env.convention.texel(i / w, i % w, h, w).1 / d_block
+                d_omegas[i] / d_block
             };
             (b, s)
         })

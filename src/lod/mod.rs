@@ -27,7 +27,7 @@ mod cull;
 mod light;
 mod table;
 
-pub use choose::{Choice, Estimate, choose};
+pub use choose::{Choice, Chooser, Estimate, choose};
 
 use crate::Backend;
 use crate::error::{Error, Result};
@@ -221,9 +221,7 @@ pub fn backward(
 /// The image of `scene` by the cheapest method whose estimated error is within `tol`, and
 /// that choice.
 pub fn render_within(backend: &dyn Backend, scene: &Scene, tol: f64) -> Result<(Image, Choice)> {
-    let prep = Prepared::new(scene);
-    let (choice, plan) = choose::choose_plan(backend, &prep, scene, tol, None)?;
-    Ok((plan.forward(backend)?, choice))
+    Chooser::default().render_within(backend, scene, tol)
 }
 
 /// The gradients of `scene` by the cheapest method whose estimated errors (image and
@@ -234,9 +232,34 @@ pub fn backward_within(
     upstream: &Image,
     tol: f64,
 ) -> Result<(Gradients, Choice)> {
-    let prep = Prepared::new(scene);
-    let (choice, plan) = choose::choose_plan(backend, &prep, scene, tol, Some(upstream))?;
-    Ok((plan.backward(backend, upstream)?, choice))
+    Chooser::default().backward_within(backend, scene, upstream, tol)
+}
+
+impl Chooser {
+    /// [`render_within`] with these settings.
+    pub fn render_within(
+        &self,
+        backend: &dyn Backend,
+        scene: &Scene,
+        tol: f64,
+    ) -> Result<(Image, Choice)> {
+        let prep = Prepared::new(scene);
+        let (choice, plan) = choose::choose_plan(self, backend, &prep, scene, tol, None)?;
+        Ok((plan.forward(backend)?, choice))
+    }
+
+    /// [`backward_within`] with these settings.
+    pub fn backward_within(
+        &self,
+        backend: &dyn Backend,
+        scene: &Scene,
+        upstream: &Image,
+        tol: f64,
+    ) -> Result<(Gradients, Choice)> {
+        let prep = Prepared::new(scene);
+        let (choice, plan) = choose::choose_plan(self, backend, &prep, scene, tol, Some(upstream))?;
+        Ok((plan.backward(backend, upstream)?, choice))
+    }
 }
 
 pub(crate) use plan::Plan;
