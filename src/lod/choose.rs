@@ -273,13 +273,13 @@ struct Trial<'a> {
     /// neighbours (a texel's horizon is a kink that a table's errors straddle with both
     /// signs), so a sample of pixels would overstate them; the layer is linear in L, so
     /// dLoss/dL of a texel needs no other texel.
-    texels: Option<TexelTruth>,
+    /// Made when a candidate first gets that far.
+    texels: std::cell::OnceCell<TexelTruth>,
 }
 
 /// The exact gradients for a sample of texels, on every pixel.
 struct TexelTruth {
     mask: Vec<bool>,
-    pixels: Prepared,
     grads: Gradients,
 }
 
@@ -338,27 +338,7 @@ impl<'a> Trial<'a> {
             upstream,
             pixels,
             tables: truth(&table_positions)?,
-            texels: match upstream {
-                Some(up) => {
-                    let mask = texel_mask(&scene.env);
-                    let pixels = full.clone();
-                    let exact = Plan::masked(
-                        backend,
-                        &pixels,
-                        &scene.env,
-                        &Method::EXACT,
-                        &full.pixels,
-                        &mask,
-                    )?;
-                    let grads = exact.backward(backend, up)?;
-                    Some(TexelTruth {
-                        mask,
-                        pixels,
-                        grads,
-                    })
-                }
-                None => None,
-            },
+            texels: std::cell::OnceCell::new(),
         })
     }
 
@@ -385,8 +365,8 @@ impl<'a> Trial<'a> {
         if e.image * SAFETY > tol {
             return Ok(e);
         }
-        if let (Some(up), Some(sample_up), Some(exact), Some(texels)) =
-            (self.upstream, &truth.upstream, &truth.grads, &self.texels)
+        if let (Some(up), Some(sample_up), Some(exact)) =
+            (self.upstream, &truth.upstream, &truth.grads)
         {
             let g = plan.backward(self.backend, sample_up)?;
             e.d_normals = Some(rel(&g.d_normals, &exact.d_normals));
@@ -394,8 +374,19 @@ impl<'a> Trial<'a> {
                 return Ok(e);
             }
             let env = &self.scene.env;
-            let (mask, full) = (&texels.mask, &self.full.pixels);
-            let plan = Plan::masked(self.backend, &texels.pixels, env, method, full, mask)?;
+            let texels = match self.texels.get() {
+                Some(t) => t,
+                None => {
+                    let mask = texel_mask(env);
+                    let full = self.full;
+                    let exact =
+                        Plan::masked(self.backend, full, env, &Method::EXACT, &full.pixels, &mask)?;
+                    let grads = exact.backward(self.backend, up)?;
+                    self.texels.get_or_init(|| TexelTruth { mask, grads })
+                }
+            };
+            let (mask, full) = (&texels.mask, self.full);
+            let plan = Plan::masked(self.backend, full, env, method, &full.pixels, mask)?;
             let g = plan.backward(self.backend, up)?;
             e.d_env = Some(rel_masked(&g.d_env, &texels.grads.d_env, mask));
             e.d_ctrl = Some(rel_ctrl(&g.d_ctrl, &texels.grads.d_ctrl));
