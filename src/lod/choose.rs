@@ -507,6 +507,7 @@ pub(crate) fn choose_plan<'a>(
         // cannot interpolate, so a table over the rest of the map is usually the cheaper
         let keep_rank = |k: usize| KEEPS_FOR_TABLES.iter().position(|&x| x == k);
         table_lights.sort_by_key(|&((f, k), _, _)| (f, keep_rank(k)));
+        let mut passed_at = None;
         for ((f, k), blocks, kept) in table_lights {
             let e_light = match light_error.get(&(f, k)) {
                 Some(&e) => e,
@@ -521,10 +522,12 @@ pub(crate) fn choose_plan<'a>(
             if e_light * SAFETY > tol / 2.0 {
                 continue;
             }
-            let mut i = TABLE_SIZES
+            // after a light's table passed, the next light starts a step below its size
+            let first = TABLE_SIZES
                 .iter()
                 .position(|&r| r >= FIRST_TABLE)
                 .unwrap_or(0);
+            let mut i = passed_at.map_or(first, |p: usize| p.saturating_sub(1).max(first));
             while i < TABLE_SIZES.len() {
                 let r = TABLE_SIZES[i];
                 let grid = Grid::new(r, &prep.pixels);
@@ -554,6 +557,7 @@ pub(crate) fn choose_plan<'a>(
                 }
                 if e.max() * SAFETY <= tol {
                     best = (m, e, cost);
+                    passed_at = Some(i);
                     break;
                 }
                 // the resolution this error asks for, if the table's share falls as h^3
