@@ -6,7 +6,7 @@
 use crate::camera::Camera;
 use crate::envmap::Convention;
 use crate::material::N_PARAMS;
-use crate::scene::{BACKGROUND_EPS, Scene};
+use crate::scene::{BACKGROUND_EPS, Image, Scene};
 use crate::spline::{N_CTRL_POINTS, spline_basis};
 
 /// Coefficients m_{s,t}^k per direction: index (k * 3 + s) * 2 + t.
@@ -298,6 +298,15 @@ impl Prepared {
             lit,
             active_lobes,
             const_lobes,
+        }
+    }
+
+    /// An image of this scene's size.
+    pub fn image(&self, pixels: Vec<[f32; 3]>) -> Image {
+        Image {
+            width: self.width,
+            height: self.height,
+            pixels,
         }
     }
 

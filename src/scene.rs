@@ -277,35 +277,6 @@ impl Batch {
         (self.scenes[0].normals.width, self.scenes[0].normals.height)
     }
 
-    /// One image per scene, each from `pixels` (a scene's image, row-major): how a backend
-    /// that renders scene by scene answers [`crate::Backend::render`].
-    pub fn images(&self, pixels: impl Fn(&Scene) -> Vec<[f32; 3]>) -> Vec<Image> {
-        let (width, height) = self.image_size();
-        let image = |s| Image {
-            width,
-            height,
-            pixels: pixels(s),
-        };
-        self.scenes.iter().map(image).collect()
-    }
-
-    /// One set of gradients per scene, each from `grads` (a scene and its upstream image),
-    /// after checking `upstream`: how a backend that works scene by scene answers
-    /// [`crate::Backend::backward`].
-    pub fn gradients(
-        &self,
-        upstream: &[Image],
-        grads: impl Fn(&Scene, &Image) -> Gradients,
-    ) -> Result<Vec<Gradients>> {
-        self.check_upstream(upstream)?;
-        Ok(self
-            .scenes
-            .iter()
-            .zip(upstream)
-            .map(|(s, u)| grads(s, u))
-            .collect())
-    }
-
     /// Checks that `upstream` holds one image per scene of the batch's image size, all finite.
     pub fn check_upstream(&self, upstream: &[Image]) -> Result<()> {
         if upstream.len() != self.scenes.len() {

@@ -6,7 +6,7 @@ use pulp::{Simd, WithSimd};
 
 use super::forward::GROUP_TEXELS;
 use super::math::{exp2, exp2m1};
-use super::pair::{Cols, DPOW_MAX, Setup, coef, geo, underflows};
+use super::pair::{Cols, Setup, coef, dpow, geo, underflows};
 use super::table::{Px, TexelTable};
 use crate::material::idx;
 use crate::spline::N_CTRL_POINTS;
@@ -110,11 +110,7 @@ impl Backward<'_> {
                                     continue;
                                 }
                                 let xb = exp2(s, t);
-                                let dp = s.min_f32s(
-                                    s.mul_f32s(s.mul_f32s(m1, xb), inv_x),
-                                    s.splat_f32s(DPOW_MAX),
-                                );
-                                (Some(xb), s.select_f32s(g.pos, dp, zero))
+                                (Some(xb), dpow(s, m1, xb, inv_x, g.pos))
                             }
                             None => (None, zero),
                         };

@@ -4,7 +4,7 @@
 use pulp::{Simd, WithSimd};
 
 use super::math::{exp2, exp2m1};
-use super::pair::{Cols, DPOW_MAX, Setup, add_channels, coef, geo, underflows};
+use super::pair::{Cols, Setup, add_channels, coef, dpow, geo, underflows};
 use super::table::{Px, TexelTable};
 
 /// Texels per group: each pixel's lane sums run over one group in f32 and are then added
@@ -85,11 +85,7 @@ impl Forward<'_> {
                                 }
                                 let xb = exp2(s, t);
                                 let dp = if J {
-                                    let dp = s.min_f32s(
-                                        s.mul_f32s(s.mul_f32s(m1, xb), inv_x),
-                                        s.splat_f32s(DPOW_MAX),
-                                    );
-                                    s.select_f32s(g.pos, dp, zero)
+                                    dpow(s, m1, xb, inv_x, g.pos)
                                 } else {
                                     zero
                                 };

@@ -370,14 +370,7 @@ impl Backend for FastCpu {
     }
 
     fn render_prepared(&self, preps: &[Prepared]) -> Result<Vec<Image>> {
-        Ok(preps
-            .iter()
-            .map(|p| Image {
-                width: p.width,
-                height: p.height,
-                pixels: self.forward(p),
-            })
-            .collect())
+        Ok(preps.iter().map(|p| p.image(self.forward(p))).collect())
     }
 
     fn backward_prepared(&self, preps: &[Prepared], upstream: &[Image]) -> Result<Vec<Gradients>> {

@@ -75,6 +75,17 @@ pub struct Geo<S: Simd> {
     pub basis: [S::f32s; N_CTRL_POINTS],
 }
 
+/// m1 x^(m1 - 1) from m1, x^m1 and 1 / x: clamped at [`DPOW_MAX`], 0 where x = 0 (lanes
+/// not in `pos`).
+#[inline(always)]
+pub fn dpow<S: Simd>(s: S, m1: S::f32s, xb: S::f32s, inv_x: S::f32s, pos: S::m32s) -> S::f32s {
+    let dp = s.min_f32s(
+        s.mul_f32s(s.mul_f32s(m1, xb), inv_x),
+        s.splat_f32s(DPOW_MAX),
+    );
+    s.select_f32s(pos, dp, s.splat_f32s(0.0))
+}
+
 /// Whether any lane of `m` is set. pulp's `first_true_m32s` walks the lanes one by one
 /// where masks are vectors (AVX2, NEON); AVX2 has one instruction for it.
 #[inline(always)]

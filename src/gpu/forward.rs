@@ -99,10 +99,6 @@ pub(super) fn forward(r: &GpuRenderer, preps: &[Prepared]) -> Result<Vec<Image>>
     Ok(preps
         .iter()
         .zip(slots)
-        .map(|(prep, s)| Image {
-            width: prep.width,
-            height: prep.height,
-            pixels: scatter_pixels(prep, &data, &s),
-        })
+        .map(|(prep, s)| prep.image(scatter_pixels(prep, &data, &s)))
         .collect())
 }

@@ -216,10 +216,11 @@ impl<'a> Plan<'a> {
             add_ctrl(&mut d_ctrl, &g.d_ctrl);
         }
         if let Some((t, nodes)) = &p.table {
-            let node_scenes: Vec<Prepared> = nodes.iter().map(|&n| p.scenes[n].clone()).collect();
-            let jacs = backend.normal_jacobians(&node_scenes)?;
             let mut jac = vec![[[0.0f32; 3]; 3]; t.normals.len()];
-            for (&n, js) in nodes.iter().zip(jacs) {
+            for &n in nodes {
+                let js = backend
+                    .normal_jacobians(std::slice::from_ref(&p.scenes[n]))?
+                    .remove(0);
                 let g = &grads[n];
                 add(&mut d_blocks, &g.d_env);
                 add_ctrl(&mut d_ctrl, &g.d_ctrl);

@@ -54,6 +54,21 @@ impl Grid {
         ]
     }
 
+    /// A pixel's stencil (its first node and weights), or None if the pixel is left to
+    /// per-pixel evaluation.
+    fn place(&self, p: &PixelRec) -> Option<([usize; 2], [[f32; 4]; 2])> {
+        let (u, v) = stereo(p)?;
+        (u.abs() <= self.extent && v.abs() <= self.extent).then(|| self.stencil(u, v))
+    }
+
+    /// Flags the 16 nodes of the stencil whose first node is `at`.
+    fn mark(&self, used: &mut [bool], [cu, cv]: [usize; 2]) {
+        let side = self.side();
+        for b in 0..4 {
+            used[(cv + b) * side + cu..(cv + b) * side + cu + 4].fill(true);
+        }
+    }
+
     /// The first node of the stencil and the weights along each axis at (u, v).
     fn stencil(&self, u: f64, v: f64) -> ([usize; 2], [[f32; 4]; 2]) {
         let h = self.spacing();
@@ -112,28 +127,24 @@ impl Table {
     /// The table of `grid` that `pixels` need.
     pub fn new(grid: &Grid, pixels: &[PixelRec]) -> Self {
         let side = grid.side();
-        let mut slot = vec![u32::MAX; side * side];
+        let mut used = vec![false; side * side];
         let mut cells = Vec::with_capacity(pixels.len());
         let mut left = Vec::new();
         let mut stencils = Vec::with_capacity(pixels.len());
         for (k, p) in pixels.iter().enumerate() {
-            match stereo(p) {
-                Some((u, v)) if u.abs() <= grid.extent && v.abs() <= grid.extent => {
-                    let ([cu, cv], [wu, wv]) = grid.stencil(u, v);
-                    for b in 0..4 {
-                        for a in 0..4 {
-                            slot[(cv + b) * side + cu + a] = 0;
-                        }
-                    }
-                    stencils.push((p.index, cu, cv, wu, wv));
+            match grid.place(p) {
+                Some((at, [wu, wv])) => {
+                    grid.mark(&mut used, at);
+                    stencils.push((p.index, at[0], at[1], wu, wv));
                 }
-                _ => left.push(k),
+                None => left.push(k),
             }
         }
+        let mut slot = vec![u32::MAX; side * side];
         let mut normals = Vec::new();
         for j in 0..side {
             for i in 0..side {
-                if slot[j * side + i] != u32::MAX {
+                if used[j * side + i] {
                     slot[j * side + i] = normals.len() as u32;
                     normals.push(grid.node_normal(i, j));
                 }
@@ -167,14 +178,9 @@ impl Table {
         let mut used = vec![false; side * side];
         let mut left = 0;
         for p in pixels {
-            match stereo(p) {
-                Some((u, v)) if u.abs() <= grid.extent && v.abs() <= grid.extent => {
-                    let ([cu, cv], _) = grid.stencil(u, v);
-                    for b in 0..4 {
-                        used[(cv + b) * side + cu..(cv + b) * side + cu + 4].fill(true);
-                    }
-                }
-                _ => left += 1,
+            match grid.place(p) {
+                Some((at, _)) => grid.mark(&mut used, at),
+                None => left += 1,
             }
         }
         (used.iter().filter(|&&u| u).count(), left)

@@ -62,14 +62,7 @@ impl Backend for Reference {
     }
 
     fn render_prepared(&self, preps: &[Prepared]) -> Result<Vec<Image>> {
-        Ok(preps
-            .iter()
-            .map(|p| Image {
-                width: p.width,
-                height: p.height,
-                pixels: to_f32(&forward(p)),
-            })
-            .collect())
+        Ok(preps.iter().map(|p| p.image(to_f32(&forward(p)))).collect())
     }
 
     fn backward_prepared(&self, preps: &[Prepared], upstream: &[Image]) -> Result<Vec<Gradients>> {
