@@ -27,11 +27,13 @@
     reason = "loops mirror the WGSL shaders index for index"
 )]
 
+pub mod brdf;
 pub mod camera;
 pub mod cpu;
 pub mod defaults;
 pub mod envmap;
 pub mod error;
+pub mod fit;
 pub mod gpu;
 pub mod io;
 pub mod lod;

@@ -1,0 +1,1 @@
+//! MERL measured BRDF tables (`.binary`).

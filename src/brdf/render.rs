@@ -1,0 +1,1 @@
+//! Brute-force f64 rendering with any isotropic BRDF.
