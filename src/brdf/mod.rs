@@ -52,7 +52,11 @@ pub fn to_rusinkiewicz(n: [f64; 3], w_i: [f64; 3], w_o: [f64; 3]) -> Option<[f64
     let h = normalize([w_i[0] + w_o[0], w_i[1] + w_o[1], w_i[2] + w_o[2]])?;
     let cos_h = dot(h, n);
     // The component of h across the normal: its direction is phi_h's tangent.
-    let across = [h[0] - cos_h * n[0], h[1] - cos_h * n[1], h[2] - cos_h * n[2]];
+    let across = [
+        h[0] - cos_h * n[0],
+        h[1] - cos_h * n[1],
+        h[2] - cos_h * n[2],
+    ];
     let sin_h = dot(across, across).sqrt();
     let theta_h = sin_h.atan2(cos_h);
     // The frame of d: z = h, y = the binormal n x t (t = h's tangent direction), x = y x h.

@@ -118,7 +118,9 @@ fn network(name: &str, m: &Value) -> std::result::Result<Nbrdf, String> {
             .enumerate()
             .map(|(i, x)| match x.as_f64() {
                 Some(x) if x.is_finite() => Ok(x),
-                _ => Err(format!("material '{name}': \"{key}\"[{i}] is not a finite number")),
+                _ => Err(format!(
+                    "material '{name}': \"{key}\"[{i}] is not a finite number"
+                )),
             })
             .collect()
     };
@@ -155,7 +157,8 @@ fn network(name: &str, m: &Value) -> std::result::Result<Nbrdf, String> {
         Ok(out)
     };
     fn rows<const C: usize>(flat: &[f64]) -> impl Iterator<Item = [f64; C]> + '_ {
-        flat.chunks_exact(C).map(|c| c.try_into().expect("chunk of C"))
+        flat.chunks_exact(C)
+            .map(|c| c.try_into().expect("chunk of C"))
     }
     let w1 = matrix("w1", IN, HIDDEN)?;
     let w2 = matrix("w2", HIDDEN, HIDDEN)?;

@@ -1,8 +1,18 @@
-//! Fitting the DSBRDF to an isotropic BRDF.
+//! Fitting the DSBRDF to an isotropic BRDF (a MERL table, an NBRDF network, an analytic
+//! model): the 108 control points are fitted jointly against the BRDF over
+//! (theta_h, theta_d), each channel's lobes by Levenberg-Marquardt ([`lm`]) on the
+//! samples of [`samples`].
+
+pub mod lm;
+pub mod samples;
+
+use lm::Problem;
+use samples::{Grid, Tabulated};
 
 use crate::brdf::Isotropic;
-use crate::error::Result;
-use crate::material::Material;
+use crate::error::{Result, invalid};
+use crate::material::{MAX_ABS_SCALE, MAX_EXPONENT, Material, N_CHANNELS, N_LOBES, N_PARAMS, idx};
+use crate::spline::N_CTRL_POINTS;
 
 /// How many lobes to fit.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -21,6 +31,11 @@ pub struct Options {
     pub lobes: Lobes,
     /// Relative slack over the 3-lobe error allowed to a fit with fewer lobes.
     pub tolerance: f64,
+    /// The loss's scale c: residuals are taken on c ln(1 + f / c), linear below c and
+    /// logarithmic above (infinite: linear).
+    pub loss_scale: f64,
+    /// Where the BRDF is sampled.
+    pub grid: Grid,
 }
 
 impl Default for Options {
@@ -28,6 +43,8 @@ impl Default for Options {
         Options {
             lobes: Lobes::Auto,
             tolerance: 0.05,
+            loss_scale: 1.0,
+            grid: Grid::default(),
         }
     }
 }
@@ -59,13 +76,197 @@ impl Fitted {
     }
 }
 
+/// Exponents tried for a new lobe: broad to mirror-like.
+const START_EXPONENTS: [f64; 5] = [1e-3, 3.0, 30.0, 300.0, 3000.0];
+/// LM steps for each start, and for the best start.
+const START_STEPS: usize = 20;
+const FINAL_STEPS: usize = 120;
+
 /// Fits the DSBRDF to `brdf`; `name` names the material.
-pub fn fit(_brdf: &dyn Isotropic, _name: &str, _options: &Options) -> Result<Fitted> {
-    todo!()
+///
+/// The lobes' shapes are found on the channels' mean, nested: the best 1-lobe fit over
+/// [`START_EXPONENTS`], then each next lobe added to the previous best with each start
+/// exponent. Each channel is then refined from the mean's fit. Deterministic: one thread,
+/// fixed order.
+pub fn fit(brdf: &dyn Isotropic, name: &str, options: &Options) -> Result<Fitted> {
+    let counts: Vec<usize> = match options.lobes {
+        Lobes::Fixed(n) if (1..=N_LOBES).contains(&n) => vec![n],
+        Lobes::Fixed(n) => {
+            return Err(invalid!(
+                "fit: {n} lobes asked for; the DSBRDF has 1 to {N_LOBES}"
+            ));
+        }
+        Lobes::Auto => (1..=N_LOBES).collect(),
+    };
+    if !(options.tolerance >= 0.0 && options.tolerance.is_finite()) {
+        return Err(invalid!(
+            "fit: tolerance {} is not a number >= 0",
+            options.tolerance
+        ));
+    }
+    let table = Tabulated::new(brdf, options.grid);
+    let plane = table.plane();
+    if plane.x.is_empty() {
+        return Err(invalid!(
+            "fit: material '{name}' has no known values where surfaces are seen"
+        ));
+    }
+    if let Some(i) = plane
+        .target
+        .iter()
+        .position(|t| !t.iter().all(|v| v.is_finite()))
+    {
+        let (x, _) = (plane.x[i], i);
+        return Err(invalid!(
+            "fit: material '{name}' is not finite at theta_h = {:.4} rad",
+            x.acos()
+        ));
+    }
+    let gray: Vec<f64> = plane
+        .target
+        .iter()
+        .map(|t| (t[0] + t[1] + t[2]) / 3.0)
+        .collect();
+    let gray_problem = Problem::new(&plane, &gray, options.loss_scale);
+    let mean = weighted_mean(&plane.weight, &gray);
+    let first_scale = mean.ln_1p().clamp(1e-3, 5.0).ln();
+
+    let max_count = *counts.last().expect("at least one count");
+    let mut shapes: Vec<Vec<f64>> = Vec::with_capacity(max_count);
+    for lobes in 1..=max_count {
+        let mut best: Option<(f64, Vec<f64>)> = None;
+        for &e in &START_EXPONENTS {
+            let mut p = shapes.last().cloned().unwrap_or_default();
+            let scale = if lobes == 1 { first_scale } else { 0.1f64.ln() };
+            p.extend([scale; N_CTRL_POINTS]);
+            p.extend([e.ln(); N_CTRL_POINTS]);
+            let cost = gray_problem.solve(&mut p, START_STEPS);
+            if best.as_ref().is_none_or(|(c, _)| cost < *c) {
+                best = Some((cost, p));
+            }
+        }
+        let (_, mut p) = best.expect("starts tried");
+        gray_problem.solve(&mut p, FINAL_STEPS);
+        shapes.push(p);
+    }
+
+    // Each channel from the mean's shapes, nested like them: a fit with more lobes also
+    // starts from the channel's own fit with one lobe fewer plus a negligible lobe, so
+    // that adding a lobe never makes the fit worse.
+    let mut channels: Vec<Vec<Vec<f64>>> = vec![Vec::new(); N_CHANNELS];
+    for (k, fits) in channels.iter_mut().enumerate() {
+        let target: Vec<f64> = plane.target.iter().map(|t| t[k]).collect();
+        let problem = Problem::new(&plane, &target, options.loss_scale);
+        for lobes in 1..=max_count {
+            let mut p = shapes[lobes - 1].clone();
+            let cost = problem.solve(&mut p, FINAL_STEPS);
+            if let Some(prev) = fits.last() {
+                let mut q: Vec<f64> = prev.clone();
+                q.extend([lm::SCALE_BOUNDS.0 + 4.0; N_CTRL_POINTS]);
+                q.extend(shapes[lobes - 1][(lobes - 1) * lm::PER_LOBE + N_CTRL_POINTS..].iter());
+                let c = problem.solve(&mut q, FINAL_STEPS);
+                if c < cost {
+                    p = q;
+                }
+            }
+            fits.push(p);
+        }
+    }
+    let mut fits = Vec::with_capacity(counts.len());
+    for &lobes in &counts {
+        let mut ctrl = [0.0; N_PARAMS];
+        for (k, channel) in channels.iter().enumerate() {
+            write_channel(&mut ctrl, k, &channel[lobes - 1]);
+        }
+        let material = Material::new(name, &ctrl)?;
+        let error = table.error(&material);
+        fits.push(Fit {
+            lobes,
+            material,
+            error,
+        });
+    }
+    let best = fits.last().expect("one fit").error;
+    let chosen = fits
+        .iter()
+        .position(|f| f.error <= best * (1.0 + options.tolerance))
+        .expect("the last fit qualifies");
+    Ok(Fitted { fits, chosen })
+}
+
+/// Writes one channel's log-parameters as control points, lobes sorted by their mean
+/// exponent (broadest first); a lobe whose exponents all sit at the lower bound becomes
+/// constant (m1 = 0), which the renderers treat as such.
+fn write_channel(ctrl: &mut [f64; N_PARAMS], k: usize, p: &[f64]) {
+    let mut lobes: Vec<&[f64]> = p.chunks_exact(lm::PER_LOBE).collect();
+    let mean_exponent = |l: &[f64]| l[N_CTRL_POINTS..].iter().sum::<f64>();
+    lobes.sort_by(|a, b| mean_exponent(a).total_cmp(&mean_exponent(b)));
+    for (s, lobe) in lobes.iter().enumerate() {
+        let flat = lobe[N_CTRL_POINTS..]
+            .iter()
+            .all(|&q| q <= lm::EXPONENT_BOUNDS.0 + 1e-9);
+        for j in 0..N_CTRL_POINTS {
+            ctrl[idx(k, s, 0, j)] = lobe[j].exp().min(MAX_ABS_SCALE);
+            ctrl[idx(k, s, 1, j)] = if flat {
+                0.0
+            } else {
+                lobe[N_CTRL_POINTS + j].exp().min(MAX_EXPONENT)
+            };
+        }
+    }
+}
+
+fn weighted_mean(w: &[f64], v: &[f64]) -> f64 {
+    let total: f64 = w.iter().sum();
+    w.iter().zip(v).map(|(w, v)| w * v).sum::<f64>() / total.max(1e-300)
 }
 
 /// The relative RMSE of `model` against `measured`, weighted by cos theta_i cos theta_o
-/// over pairs of directions in the upper hemisphere.
-pub fn brdf_error(_model: &dyn Isotropic, _measured: &dyn Isotropic) -> f64 {
-    todo!()
+/// and the measure of direction pairs over the upper hemisphere, on the fitter's default
+/// grid (see [`samples`]).
+pub fn brdf_error(model: &dyn Isotropic, measured: &dyn Isotropic) -> f64 {
+    Tabulated::new(measured, Grid::default()).error(model)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn recovers_a_dsbrdf() {
+        // A diffuse lobe and a glossy one whose scale rises towards grazing theta_d.
+        let mut ctrl = [0.0; N_PARAMS];
+        for k in 0..N_CHANNELS {
+            for j in 0..N_CTRL_POINTS {
+                ctrl[idx(k, 0, 0, j)] = [0.12, 0.08, 0.05][k];
+                ctrl[idx(k, 1, 0, j)] = 1.5 + 0.3 * j as f64;
+                ctrl[idx(k, 1, 1, j)] = 60.0;
+            }
+        }
+        let truth = Material::new("truth", &ctrl).unwrap();
+        let options = Options {
+            lobes: Lobes::Fixed(2),
+            ..Options::default()
+        };
+        let f = fit(&truth, "fitted", &options).unwrap();
+        assert_eq!(f.fits.len(), 1);
+        assert!(f.best().error < 0.01, "error {}", f.best().error);
+        assert_eq!(f.best().material.name, "fitted");
+        // The unused lobe costs nothing.
+        assert!((0..N_CHANNELS).all(|k| (0..N_CTRL_POINTS).all(|j| f.best().material.ctrl[idx(k, 2, 0, j)] == 0.0)));
+    }
+
+    #[test]
+    fn rejects_bad_options() {
+        let m = Material::constant("m", [(0.1, 0.0), (0.0, 0.0), (0.0, 0.0)]).unwrap();
+        let e = fit(
+            &m,
+            "m",
+            &Options {
+                lobes: Lobes::Fixed(4),
+                ..Options::default()
+            },
+        );
+        assert!(e.unwrap_err().to_string().contains("4 lobes"));
+    }
 }

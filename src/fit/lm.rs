@@ -1,0 +1,215 @@
+//! Levenberg-Marquardt on one channel's lobes: the control points of lobe s are
+//! exp(p) (scales m0 and exponents m1 both stay positive, and exponents spanning 1 to 1e4
+//! are equally well scaled), the residual of sample i is
+//! sqrt(w_i) (g(f_i) - g(t_i)) with g(v) = c ln(1 + v / c), linear for values small
+//! against c and logarithmic above, so that a specular peak cannot drown the rest.
+
+use super::samples::Plane;
+use crate::spline::N_CTRL_POINTS;
+
+/// Parameters per lobe: 6 log-scales then 6 log-exponents.
+pub const PER_LOBE: usize = 2 * N_CTRL_POINTS;
+
+/// Bounds of the log-parameters: scales in [1e-8, 40], exponents in [1e-3, 1e4].
+pub const SCALE_BOUNDS: (f64, f64) = (-18.420680743952367, 3.6888794541139363);
+/// See [`SCALE_BOUNDS`].
+pub const EXPONENT_BOUNDS: (f64, f64) = (-6.907755278982137, 9.210340371976184);
+
+/// One channel's least-squares problem over the plane.
+pub struct Problem<'a> {
+    plane: &'a Plane,
+    /// g(target) per sample.
+    g_target: Vec<f64>,
+    /// sqrt(weight) per sample, normalised so that sum w g(t)^2 = 1.
+    sqrt_w: Vec<f64>,
+    /// The scale c of g; infinite for a linear loss.
+    c: f64,
+}
+
+impl<'a> Problem<'a> {
+    /// The problem for `target` (one value per plane sample) with loss scale `c`.
+    pub fn new(plane: &'a Plane, target: &[f64], c: f64) -> Self {
+        let g_target: Vec<f64> = target.iter().map(|&t| g(t, c)).collect();
+        let norm: f64 = plane
+            .weight
+            .iter()
+            .zip(&g_target)
+            .map(|(w, t)| w * t * t)
+            .sum::<f64>()
+            .max(1e-300);
+        let sqrt_w = plane.weight.iter().map(|w| (w / norm).sqrt()).collect();
+        Problem {
+            plane,
+            g_target,
+            sqrt_w,
+            c,
+        }
+    }
+
+    /// The model's value and, if `jac` is given, its derivatives with respect to the
+    /// log-parameters, at sample i.
+    /// `ctrl` holds exp(p): the control points themselves.
+    fn model(&self, i: usize, ctrl: &[f64], mut jac: Option<&mut [f64]>) -> f64 {
+        let b = &self.plane.basis[i];
+        let (x, ln_x) = (self.plane.x[i], self.plane.ln_x[i]);
+        let mut f = 0.0;
+        for (s, lobe) in ctrl.chunks_exact(PER_LOBE).enumerate() {
+            let (c0, c1) = lobe.split_at(N_CTRL_POINTS);
+            let (mut m0, mut m1) = (0.0, 0.0);
+            for j in 0..N_CTRL_POINTS {
+                m0 += b[j] * c0[j];
+                m1 += b[j] * c1[j];
+            }
+            let xp = if x > 0.0 { (m1 * ln_x).exp() } else { 0.0 };
+            let e = (m0 * xp).exp();
+            f += e - 1.0;
+            if let Some(jac) = jac.as_deref_mut() {
+                let d0 = e * xp;
+                let d1 = e * m0 * xp * ln_x;
+                let row = &mut jac[s * PER_LOBE..(s + 1) * PER_LOBE];
+                for j in 0..N_CTRL_POINTS {
+                    row[j] = d0 * b[j] * c0[j];
+                    row[N_CTRL_POINTS + j] = d1 * b[j] * c1[j];
+                }
+            }
+        }
+        f
+    }
+
+    /// The cost: sum of squared residuals (1 for the zero model... up to the loss).
+    pub fn cost(&self, p: &[f64]) -> f64 {
+        let ctrl: Vec<f64> = p.iter().map(|v| v.exp()).collect();
+        (0..self.g_target.len())
+            .map(|i| {
+                let r = self.sqrt_w[i] * (g(self.model(i, &ctrl, None), self.c) - self.g_target[i]);
+                r * r
+            })
+            .sum()
+    }
+
+    /// Minimises the cost from `p` for at most `iterations` steps; returns the cost.
+    pub fn solve(&self, p: &mut [f64], iterations: usize) -> f64 {
+        let n = p.len();
+        let mut cost = self.cost(p);
+        let mut lambda = 1e-3;
+        let mut jac = vec![0.0; n];
+        let mut a = vec![0.0; n * n];
+        let mut grad = vec![0.0; n];
+        let mut trial = vec![0.0; n];
+        let mut step = vec![0.0; n];
+        let mut stalls = 0;
+        for _ in 0..iterations {
+            a.fill(0.0);
+            grad.fill(0.0);
+            let ctrl: Vec<f64> = p.iter().map(|v| v.exp()).collect();
+            for i in 0..self.g_target.len() {
+                let f = self.model(i, &ctrl, Some(&mut jac));
+                let dg = self.sqrt_w[i] * g_prime(f, self.c);
+                let r = self.sqrt_w[i] * (g(f, self.c) - self.g_target[i]);
+                for v in jac.iter_mut() {
+                    *v *= dg;
+                }
+                for (row, &jr) in jac.iter().enumerate() {
+                    grad[row] += jr * r;
+                    let a_row = &mut a[row * n..row * n + row + 1];
+                    for (av, &jc) in a_row.iter_mut().zip(&jac[..=row]) {
+                        *av += jr * jc;
+                    }
+                }
+            }
+            let mut improved = false;
+            for _ in 0..12 {
+                if !solve_damped(&a, &grad, lambda, n, &mut step) {
+                    lambda *= 8.0;
+                    continue;
+                }
+                for (i, (lo, hi)) in bounds(n).enumerate() {
+                    trial[i] = (p[i] - step[i]).clamp(lo, hi);
+                }
+                let c = self.cost(&trial);
+                if c < cost {
+                    let gain = (cost - c) / cost.max(1e-300);
+                    p.copy_from_slice(&trial);
+                    cost = c;
+                    lambda = (lambda / 3.0).max(1e-9);
+                    improved = true;
+                    stalls = if gain < 1e-7 { stalls + 1 } else { 0 };
+                    break;
+                }
+                lambda *= 4.0;
+            }
+            if !improved || stalls >= 3 {
+                break;
+            }
+        }
+        cost
+    }
+}
+
+/// The bounds of each parameter of a vector of length n.
+fn bounds(n: usize) -> impl Iterator<Item = (f64, f64)> {
+    (0..n).map(|i| {
+        if i % PER_LOBE < N_CTRL_POINTS {
+            SCALE_BOUNDS
+        } else {
+            EXPONENT_BOUNDS
+        }
+    })
+}
+
+/// Solves (A + lambda diag(A)) x = grad by Cholesky, A symmetric with its lower
+/// triangle filled; false if the damped matrix is not positive definite.
+fn solve_damped(a: &[f64], grad: &[f64], lambda: f64, n: usize, x: &mut [f64]) -> bool {
+    let mut l = vec![0.0; n * n];
+    for i in 0..n {
+        for j in 0..=i {
+            let mut s = a[i * n + j];
+            if i == j {
+                s += lambda * a[i * n + i] + 1e-12;
+            }
+            for k in 0..j {
+                s -= l[i * n + k] * l[j * n + k];
+            }
+            if i == j {
+                if s <= 0.0 || !s.is_finite() {
+                    return false;
+                }
+                l[i * n + i] = s.sqrt();
+            } else {
+                l[i * n + j] = s / l[j * n + j];
+            }
+        }
+    }
+    for i in 0..n {
+        let mut s = grad[i];
+        for k in 0..i {
+            s -= l[i * n + k] * x[k];
+        }
+        x[i] = s / l[i * n + i];
+    }
+    for i in (0..n).rev() {
+        let mut s = x[i];
+        for k in i + 1..n {
+            s -= l[k * n + i] * x[k];
+        }
+        x[i] = s / l[i * n + i];
+    }
+    x.iter().all(|v| v.is_finite())
+}
+
+/// The loss's transform g(v) = c ln(1 + v / c) (v for infinite c).
+fn g(v: f64, c: f64) -> f64 {
+    if c.is_finite() {
+        c * (v.max(0.0) / c).ln_1p()
+    } else {
+        v
+    }
+}
+
+fn g_prime(v: f64, c: f64) -> f64 {
+    if c.is_finite() {
+        1.0 / (1.0 + v.max(0.0) / c)
+    } else {
+        1.0
+    }
+}
