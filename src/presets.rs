@@ -1,6 +1,9 @@
-//! Built-in materials: a handful of plausible DSBRDF parameter sets, built in code.
+//! Built-in materials: the 90 MERL materials fitted by [`crate::fit`] (their control
+//! points ship in `data/merl/fits.json`, which `matedit fit-brdf --nbrdf
+//! data/merl/merl_nbrdf.json --bundle data/merl/fits.json` regenerates), and a handful of
+//! plausible parameter sets made by hand.
 //!
-//! Each preset has up to three lobes, f = sum_s (exp(m0_s x^m1_s) - 1) per channel:
+//! Each hand-made preset has up to three lobes, f = sum_s (exp(m0_s x^m1_s) - 1) per channel:
 //! - a diffuse lobe (m1 = 0, so f = exp(m0) - 1 is constant), with m0 = ln(1 + rho / pi)
 //!   for a Lambertian albedo rho;
 //! - glossy lobes (m1 from 4 to 400), whose scale can rise towards grazing theta_d
@@ -9,11 +12,15 @@
 //! The scales are chosen so that the directional albedo stays below 1 and renders under
 //! the default environment have values of order 0.1 to 10.
 
+use crate::fit::job::Bundle;
 use crate::material::{Material, N_CHANNELS, N_LOBES, N_PARAMS, idx};
 use crate::spline::N_CTRL_POINTS;
 
 /// The preset used when no material is given.
-pub const DEFAULT: &str = "plastic-red";
+pub const DEFAULT: &str = "red-specular-plastic";
+
+/// The fitted MERL materials, as `matedit fit-brdf --bundle` writes them.
+const MERL_FITS: &str = include_str!("../data/merl/fits.json");
 
 /// No ramp: the lobe is the same at every theta_d.
 const FLAT: [f64; N_CTRL_POINTS] = [1.0; N_CTRL_POINTS];
@@ -44,16 +51,31 @@ const fn diffuse(m0: [f64; N_CHANNELS]) -> Lobe {
 }
 
 /// A built-in material.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub struct Preset {
     /// The name used with `--preset`.
     pub name: &'static str,
-    /// One line saying what it looks like.
-    pub description: &'static str,
-    lobes: [Lobe; N_LOBES],
+    /// One line saying what it is.
+    pub description: String,
+    material: Material,
 }
 
 impl Preset {
+    /// The preset as a [`Material`].
+    pub fn material(&self) -> Material {
+        self.material.clone()
+    }
+}
+
+/// A hand-made material.
+#[derive(Clone, Copy, Debug)]
+struct Handmade {
+    name: &'static str,
+    description: &'static str,
+    lobes: [Lobe; N_LOBES],
+}
+
+impl Handmade {
     /// The 108 control points.
     pub fn ctrl(&self) -> [f64; N_PARAMS] {
         let mut ctrl = [0.0; N_PARAMS];
@@ -66,14 +88,6 @@ impl Preset {
             }
         }
         ctrl
-    }
-
-    /// The preset as a [`Material`].
-    pub fn material(&self) -> Material {
-        Material {
-            name: self.name.to_string(),
-            ctrl: self.ctrl(),
-        }
     }
 }
 
@@ -91,10 +105,10 @@ const fn lambert(rho: [f64; N_CHANNELS]) -> Lobe {
     diffuse(m0)
 }
 
-const PRESETS: [Preset; 6] = [
-    Preset {
+const HANDMADE: [Handmade; 5] = [
+    Handmade {
         name: "plastic-red",
-        description: "glossy red plastic: red diffuse base, white highlight (the default)",
+        description: "glossy red plastic: red diffuse base, white highlight (hand-made)",
         lobes: [
             lambert([0.55, 0.06, 0.04]),
             Lobe {
@@ -109,7 +123,7 @@ const PRESETS: [Preset; 6] = [
             },
         ],
     },
-    Preset {
+    Handmade {
         name: "gold",
         description: "polished gold: no diffuse, a tinted glossy lobe and a faint haze",
         lobes: [
@@ -126,7 +140,7 @@ const PRESETS: [Preset; 6] = [
             },
         ],
     },
-    Preset {
+    Handmade {
         name: "clay",
         description: "terracotta clay: rough orange-brown diffuse with a faint broad sheen",
         lobes: [
@@ -139,7 +153,7 @@ const PRESETS: [Preset; 6] = [
             NONE,
         ],
     },
-    Preset {
+    Handmade {
         name: "chrome-ish",
         description: "brushed chrome: a sharp neutral reflection (blurred at 64x128) and a soft halo",
         lobes: [
@@ -156,42 +170,68 @@ const PRESETS: [Preset; 6] = [
             },
         ],
     },
-    Preset {
-        name: "blue-rubber",
-        description: "blue rubber: saturated blue diffuse with a dull, wide sheen",
-        lobes: [
-            lambert([0.04, 0.10, 0.45]),
-            Lobe {
-                m0: [0.06; 3],
-                m1: 12.0,
-                ramp: FRESNEL,
-            },
-            NONE,
-        ],
-    },
-    Preset {
+    Handmade {
         name: "matte-white",
         description: "ideal white Lambertian, albedo 0.8 (a reference for lighting)",
         lobes: [lambert([0.8; 3]), NONE, NONE],
     },
 ];
 
-/// Every built-in preset, the default first.
+/// Every built-in preset: the fitted MERL materials in name order, the default first,
+/// then the hand-made ones.
 pub fn all() -> &'static [Preset] {
-    &PRESETS
+    static ALL: std::sync::OnceLock<Vec<Preset>> = std::sync::OnceLock::new();
+    ALL.get_or_init(|| {
+        let bundle = Bundle::parse(MERL_FITS).expect("data/merl/fits.json is checked by the tests");
+        let mut out: Vec<Preset> = bundle
+            .materials
+            .iter()
+            .zip(bundle.materials())
+            .map(|(entry, material)| Preset {
+                name: leak(&entry.name),
+                description: format!(
+                    "MERL {}: measured, fitted with {} lobe{} (BRDF error {:.3})",
+                    entry.name,
+                    entry.lobes,
+                    if entry.lobes == 1 { "" } else { "s" },
+                    entry
+                        .brdf_error
+                        .get(entry.lobes - 1)
+                        .copied()
+                        .unwrap_or(f64::NAN)
+                ),
+                material,
+            })
+            .collect();
+        if let Some(i) = out.iter().position(|p| p.name == DEFAULT) {
+            let p = out.remove(i);
+            out.insert(0, p);
+        }
+        out.extend(HANDMADE.iter().map(|h| Preset {
+            name: h.name,
+            description: h.description.to_string(),
+            material: Material {
+                name: h.name.to_string(),
+                ctrl: h.ctrl(),
+            },
+        }));
+        out
+    })
+}
+
+/// A name that lives as long as the presets (they are built once).
+fn leak(name: &str) -> &'static str {
+    Box::leak(name.to_string().into_boxed_str())
 }
 
 /// The preset names, the default first.
 pub fn names() -> Vec<&'static str> {
-    PRESETS.iter().map(|p| p.name).collect()
+    all().iter().map(|p| p.name).collect()
 }
 
 /// The material of the preset called `name`, if there is one.
 pub fn lookup(name: &str) -> Option<Material> {
-    PRESETS
-        .iter()
-        .find(|p| p.name == name)
-        .map(Preset::material)
+    all().iter().find(|p| p.name == name).map(Preset::material)
 }
 
 #[cfg(test)]
@@ -206,6 +246,12 @@ mod tests {
             let m = p.material();
             Material::new(p.name, &m.ctrl).unwrap();
         }
+        let names = names();
+        assert!(names.len() >= 95, "{} presets", names.len());
+        let mut unique = names.clone();
+        unique.sort();
+        unique.dedup();
+        assert_eq!(unique.len(), names.len(), "preset names repeat");
     }
 
     #[test]

@@ -24,6 +24,10 @@ pub struct Problem<'a> {
     sqrt_w: Vec<f64>,
     /// The scale c of g; infinite for a linear loss.
     c: f64,
+    /// Upper bound of the log-scales: no lobe may peak above 4 times the largest target,
+    /// which keeps lobes from growing spikes at theta_h ~ 0, where the measure gives
+    /// samples little weight but a point-sampled render can land on them.
+    scale_max: f64,
 }
 
 impl<'a> Problem<'a> {
@@ -38,11 +42,14 @@ impl<'a> Problem<'a> {
             .sum::<f64>()
             .max(1e-300);
         let sqrt_w = plane.weight.iter().map(|w| (w / norm).sqrt()).collect();
+        let peak = target.iter().fold(0.0f64, |m, &t| m.max(t));
+        let scale_max = (4.0 * peak).ln_1p().max(1e-6).ln().min(SCALE_BOUNDS.1);
         Problem {
             plane,
             g_target,
             sqrt_w,
             c,
+            scale_max,
         }
     }
 
@@ -90,6 +97,7 @@ impl<'a> Problem<'a> {
     /// Minimises the cost from `p` for at most `iterations` steps; returns the cost.
     pub fn solve(&self, p: &mut [f64], iterations: usize) -> f64 {
         let n = p.len();
+        self.clamp(p);
         let mut cost = self.cost(p);
         let mut lambda = 1e-3;
         let mut jac = vec![0.0; n];
@@ -123,7 +131,7 @@ impl<'a> Problem<'a> {
                     lambda *= 8.0;
                     continue;
                 }
-                for (i, (lo, hi)) in bounds(n).enumerate() {
+                for (i, (lo, hi)) in self.bounds(n).enumerate() {
                     trial[i] = (p[i] - step[i]).clamp(lo, hi);
                 }
                 let c = self.cost(&trial);
@@ -146,15 +154,25 @@ impl<'a> Problem<'a> {
     }
 }
 
-/// The bounds of each parameter of a vector of length n.
-fn bounds(n: usize) -> impl Iterator<Item = (f64, f64)> {
-    (0..n).map(|i| {
-        if i % PER_LOBE < N_CTRL_POINTS {
-            SCALE_BOUNDS
-        } else {
-            EXPONENT_BOUNDS
+impl Problem<'_> {
+    /// The bounds of each parameter of a vector of length n.
+    fn bounds(&self, n: usize) -> impl Iterator<Item = (f64, f64)> + '_ {
+        (0..n).map(|i| {
+            if i % PER_LOBE < N_CTRL_POINTS {
+                (SCALE_BOUNDS.0, self.scale_max)
+            } else {
+                EXPONENT_BOUNDS
+            }
+        })
+    }
+
+    /// `p` moved inside the bounds.
+    pub fn clamp(&self, p: &mut [f64]) {
+        let n = p.len();
+        for (v, (lo, hi)) in p.iter_mut().zip(self.bounds(n)) {
+            *v = v.clamp(lo, hi);
         }
-    })
+    }
 }
 
 /// Solves (A + lambda diag(A)) x = grad by Cholesky, A symmetric with its lower

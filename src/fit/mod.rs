@@ -3,6 +3,7 @@
 //! (theta_h, theta_d), each channel's lobes by Levenberg-Marquardt ([`lm`]) on the
 //! samples of [`samples`].
 
+pub mod job;
 pub mod lm;
 pub mod samples;
 

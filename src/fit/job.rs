@@ -1,0 +1,210 @@
+//! Fitting from files to files, as `matedit fit-brdf` does: BRDF sources (an NBRDF file
+//! with one or more materials, a MERL `.binary` table), fits in parallel, and the outputs
+//! (one material JSON, a folder of them, or one bundle file holding every fit, the format
+//! of the shipped presets in `data/merl/fits.json`).
+
+use std::path::{Path, PathBuf};
+
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use super::{Fitted, Options, fit};
+use crate::brdf::{Isotropic, merl, nbrdf};
+use crate::error::{Error, Result};
+use crate::io;
+use crate::io::json::material_from_ctrl;
+use crate::material::Material;
+
+/// Where the BRDFs come from.
+#[derive(Clone, Debug)]
+pub enum Source {
+    /// An NBRDF network file; `name` picks one material, `None` takes all.
+    Nbrdf {
+        /// The file.
+        path: PathBuf,
+        /// One material's name.
+        name: Option<String>,
+    },
+    /// A MERL `.binary` table; the material is named after the file.
+    Merl(PathBuf),
+}
+
+/// A named BRDF to fit.
+pub struct Named {
+    /// The material's name.
+    pub name: String,
+    /// The BRDF.
+    pub brdf: Box<dyn Isotropic + Send>,
+}
+
+/// Loads the BRDFs of `source`.
+pub fn load(source: &Source) -> Result<Vec<Named>> {
+    match source {
+        Source::Nbrdf { path, name } => {
+            let nets = nbrdf::read(path)?;
+            let nets: Vec<_> = match name {
+                None => nets,
+                Some(name) => {
+                    let pick: Vec<_> = nets.iter().filter(|n| &n.name == name).cloned().collect();
+                    if pick.is_empty() {
+                        let names: Vec<&str> = nets.iter().map(|n| n.name.as_str()).collect();
+                        return Err(Error::file(
+                            path,
+                            format!("no material '{name}'; the file has {}", names.join(", ")),
+                        ));
+                    }
+                    pick
+                }
+            };
+            Ok(nets
+                .into_iter()
+                .map(|n| Named {
+                    name: n.name.clone(),
+                    brdf: Box::new(n),
+                })
+                .collect())
+        }
+        Source::Merl(path) => {
+            let table = merl::read(path)?;
+            Ok(vec![Named {
+                name: table.name.clone(),
+                brdf: Box::new(table),
+            }])
+        }
+    }
+}
+
+/// Fits every BRDF in parallel (each fit is deterministic, so the result does not depend
+/// on the thread count); `done` is called after each.
+pub fn fit_all(
+    brdfs: &[Named],
+    options: &Options,
+    done: &(dyn Fn() + Sync),
+) -> Result<Vec<Fitted>> {
+    brdfs
+        .par_iter()
+        .map(|b| {
+            let f = fit(b.brdf.as_ref(), &b.name, options);
+            done();
+            f
+        })
+        .collect()
+}
+
+/// One line describing a fit: lobes kept and the errors of each count tried.
+pub fn describe(fitted: &Fitted) -> String {
+    let best = fitted.best();
+    let tried: Vec<String> = fitted
+        .fits
+        .iter()
+        .map(|f| format!("{}: {:.4}", f.lobes, f.error))
+        .collect();
+    format!(
+        "{} lobe{}, BRDF error {:.4} (relative RMSE, cosine-weighted; by lobes {})",
+        best.lobes,
+        if best.lobes == 1 { "" } else { "s" },
+        best.error,
+        tried.join(", ")
+    )
+}
+
+/// The bundle file: every fit of a run, as the presets ship them.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Bundle {
+    /// Always [`BUNDLE_FORMAT`].
+    pub format: String,
+    /// What the fits were made from, for the record.
+    pub source: String,
+    /// One entry per material, in name order.
+    pub materials: Vec<BundleEntry>,
+}
+
+/// One material of a [`Bundle`].
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BundleEntry {
+    /// The material's name.
+    pub name: String,
+    /// Lobes kept.
+    pub lobes: usize,
+    /// The BRDF error of the fit with 1, 2, 3 lobes (those tried).
+    pub brdf_error: Vec<f64>,
+    /// The 108 control points.
+    pub ctrl: Vec<f64>,
+}
+
+/// The bundle format's name.
+pub const BUNDLE_FORMAT: &str = "matedit-fits-1";
+
+impl Bundle {
+    /// The bundle of `fits` made from `source`.
+    pub fn new(source: &str, fits: &[Fitted]) -> Self {
+        let mut materials: Vec<BundleEntry> = fits
+            .iter()
+            .map(|f| BundleEntry {
+                name: f.best().material.name.clone(),
+                lobes: f.best().lobes,
+                brdf_error: f.fits.iter().map(|f| f.error).collect(),
+                ctrl: f.best().material.ctrl.to_vec(),
+            })
+            .collect();
+        materials.sort_by(|a, b| a.name.cmp(&b.name));
+        Bundle {
+            format: BUNDLE_FORMAT.into(),
+            source: source.into(),
+            materials,
+        }
+    }
+
+    /// Parses a bundle's text; the error names the item.
+    pub fn parse(text: &str) -> std::result::Result<Self, String> {
+        let b: Bundle =
+            serde_json::from_str(text).map_err(|e| format!("not a fits bundle: {e}"))?;
+        if b.format != BUNDLE_FORMAT {
+            return Err(format!(
+                "format is '{}'; expected '{BUNDLE_FORMAT}'",
+                b.format
+            ));
+        }
+        for m in &b.materials {
+            material_from_ctrl(m.name.clone(), &m.ctrl)
+                .map_err(|e| format!("material '{}': {e}", m.name))?;
+        }
+        Ok(b)
+    }
+
+    /// The materials.
+    pub fn materials(&self) -> Vec<Material> {
+        self.materials
+            .iter()
+            .map(|m| Material::new(m.name.clone(), &m.ctrl).expect("checked by parse"))
+            .collect()
+    }
+
+    /// Pretty JSON, one number a line.
+    pub fn encode(&self) -> Vec<u8> {
+        let mut out = serde_json::to_vec_pretty(self).unwrap_or_default();
+        out.push(b'\n');
+        out
+    }
+}
+
+/// Writes each fit's material as NAME.json into `dir` (created if missing), all or none.
+pub fn write_folder(dir: &Path, fits: &[Fitted], source: &str) -> Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(dir)
+        .map_err(|e| Error::file(dir, format!("cannot create the folder: {e}")))?;
+    let mut staged = Vec::with_capacity(fits.len());
+    for f in fits {
+        let m = &f.best().material;
+        let path = dir.join(format!("{}.json", m.name));
+        let bytes = io::json::encode_material(m, Some(&description(f, source)));
+        staged.push(io::stage(&path, &bytes)?);
+    }
+    io::commit_all(staged)
+}
+
+/// The description written into a fitted material's file.
+pub fn description(f: &Fitted, source: &str) -> String {
+    format!("fitted by matedit fit-brdf to {source}: {}", describe(f))
+}

@@ -1,0 +1,195 @@
+//! The fitter end to end: the shipped MERL presets re-fitted from the networks in the
+//! repository, `matedit fit-brdf` on a MERL table written from a known BRDF and on the
+//! NBRDF file, and its bad inputs (exit code 2, one line naming the file and the item, no
+//! output left behind).
+
+use std::path::Path;
+
+use assert_cmd::cargo::cargo_bin_cmd;
+use matedit::Material;
+use matedit::brdf::{Isotropic, merl, nbrdf};
+use matedit::fit::job::Bundle;
+use matedit::fit::{Lobes, Options, fit};
+
+const NBRDF: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/data/merl/merl_nbrdf.json");
+const FITS: &str = include_str!("../data/merl/fits.json");
+
+fn matedit() -> assert_cmd::Command {
+    cargo_bin_cmd!("matedit")
+}
+
+fn stderr(out: &std::process::Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// The shipped control points are what the fitter makes from the shipped networks: a
+/// few materials re-fitted (diffuse, glossy plastic, metal) match to 1e-9 relative.
+#[test]
+fn shipped_fits_match_a_refit() {
+    let bundle = Bundle::parse(FITS).expect("shipped fits parse");
+    assert_eq!(bundle.materials.len(), 90);
+    let nets = nbrdf::read(Path::new(NBRDF)).expect("shipped networks");
+    for name in ["white-diffuse-bball", "red-specular-plastic", "alum-bronze"] {
+        let net = nets.iter().find(|n| n.name == name).expect("network");
+        let shipped = bundle
+            .materials
+            .iter()
+            .find(|m| m.name == name)
+            .expect("shipped fit");
+        let refit = fit(net, name, &Options::default()).expect("fit");
+        assert_eq!(refit.best().lobes, shipped.lobes, "{name}");
+        for (i, (a, b)) in refit
+            .best()
+            .material
+            .ctrl
+            .iter()
+            .zip(&shipped.ctrl)
+            .enumerate()
+        {
+            assert!(
+                (a - b).abs() <= 1e-9 * b.abs().max(1e-3),
+                "{name}: ctrl[{i}] refit {a}, shipped {b}"
+            );
+        }
+    }
+}
+
+/// Every preset name lists first on its line, one per line, the default first.
+#[test]
+fn presets_list_the_merl_materials() {
+    let out = matedit().arg("presets").output().expect("runs");
+    assert!(out.status.success());
+    let text = String::from_utf8_lossy(&out.stdout);
+    let names: Vec<&str> = text
+        .lines()
+        .map(|l| l.split_whitespace().next().unwrap_or(""))
+        .collect();
+    assert_eq!(names[0], matedit::presets::DEFAULT);
+    for n in [
+        "gold-metallic-paint",
+        "alum-bronze",
+        "yellow-plastic",
+        "clay",
+    ] {
+        assert!(names.contains(&n), "{n} missing from `matedit presets`");
+    }
+    assert!(names.len() >= 95);
+}
+
+/// A smooth analytic BRDF: a Lambertian base and a Phong-like lobe in theta_h whose
+/// strength rises with theta_d, per channel.
+struct Analytic;
+
+impl Isotropic for Analytic {
+    fn eval(&self, theta_h: f64, theta_d: f64, _phi_d: f64) -> [f64; 3] {
+        let x = theta_h.cos();
+        let spec = 2.0 * x.powf(80.0) * (1.0 + theta_d.sin().powi(4));
+        [0.15 + spec, 0.09 + spec, 0.04 + spec]
+    }
+}
+
+#[test]
+fn fits_a_merl_table_from_the_command_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let table = dir.path().join("analytic.binary");
+    merl::write(&table, [90, 45, 8], &Analytic).unwrap();
+    let out_path = dir.path().join("fit.json");
+    let out = matedit()
+        .args(["fit-brdf", "--merl"])
+        .arg(&table)
+        .arg("-o")
+        .arg(&out_path)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", stderr(&out));
+    let m = matedit::io::json::read_material(&out_path).unwrap();
+    assert_eq!(m.name, "analytic");
+    assert!(stderr(&out).contains("analytic:"), "{}", stderr(&out));
+    // The fit reproduces the table: the BRDF error of the written material is small.
+    let error = matedit::fit::brdf_error(&m, &merl::read(&table).unwrap());
+    assert!(error < 0.05, "BRDF error {error}");
+}
+
+#[test]
+fn fits_one_nbrdf_material_and_writes_a_bundle() {
+    let dir = tempfile::tempdir().unwrap();
+    let bundle = dir.path().join("one.json");
+    let out = matedit()
+        .args([
+            "fit-brdf",
+            "--nbrdf",
+            NBRDF,
+            "--name",
+            "gold-paint",
+            "--lobes",
+            "2",
+        ])
+        .arg("--bundle")
+        .arg(&bundle)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", stderr(&out));
+    let b = Bundle::parse(&std::fs::read_to_string(&bundle).unwrap()).unwrap();
+    assert_eq!(b.materials.len(), 1);
+    assert_eq!(b.materials[0].lobes, 2);
+    let m: &Material = &b.materials()[0];
+    let lobe2_scales = (0..3).flat_map(|k| (0..6).map(move |j| ((k * 3 + 2) * 2) * 6 + j));
+    assert!(lobe2_scales.map(|i| m.ctrl[i]).all(|v| v == 0.0));
+    // Same numbers as the library.
+    let net = nbrdf::read(Path::new(NBRDF)).unwrap();
+    let net = net.iter().find(|n| n.name == "gold-paint").unwrap();
+    let lib = fit(
+        net,
+        "gold-paint",
+        &Options {
+            lobes: Lobes::Fixed(2),
+            ..Options::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(lib.best().material.ctrl.to_vec(), b.materials[0].ctrl);
+}
+
+#[test]
+fn bad_inputs_fail_with_one_line_and_no_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_path = dir.path().join("x.json");
+    // Several materials into one .json file.
+    let out = matedit()
+        .args(["fit-brdf", "--nbrdf", NBRDF, "-o"])
+        .arg(&out_path)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("90 materials"), "{}", stderr(&out));
+    // An unknown material.
+    let out = matedit()
+        .args(["fit-brdf", "--nbrdf", NBRDF, "--name", "unobtainium", "-o"])
+        .arg(&out_path)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("unobtainium"), "{}", stderr(&out));
+    // A truncated MERL table.
+    let bad = dir.path().join("bad.binary");
+    std::fs::write(&bad, [90u8, 0, 0, 0, 90, 0, 0, 0]).unwrap();
+    let out = matedit()
+        .args(["fit-brdf", "--merl"])
+        .arg(&bad)
+        .arg("-o")
+        .arg(&out_path)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let e = stderr(&out);
+    assert!(e.contains("bad.binary") && e.lines().count() == 1, "{e}");
+    assert!(!e.contains("panick"), "{e}");
+    // A lobe count the DSBRDF does not have.
+    let out = matedit()
+        .args(["fit-brdf", "--nbrdf", NBRDF, "--lobes", "4", "-o"])
+        .arg(&out_path)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(!out_path.exists());
+}
