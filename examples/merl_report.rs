@@ -343,7 +343,9 @@ fn report(a: &Args, rows: &[Row], envs: &[&str], fit_seconds: f64) -> String {
         s,
         "- **BRDF error**: relative RMSE of the fit against the measured BRDF over pairs of \
          directions in the upper hemisphere, weighted by cos theta_i cos theta_o (phi_d included, \
-         which the DSBRDF cannot represent).\n\
+         which the DSBRDF cannot represent). **floor**: the smallest BRDF error any DSBRDF can \
+         reach, that of the BRDF averaged over phi_d with the same weights: the share of the \
+         material that depends on phi_d.\n\
          - **Image error**: over the sphere's pixels and channels (background left out): relative \
          RMSE, and PSNR = 10 log10(peak^2 / MSE) with the measured image's largest value as the \
          peak.\n\
@@ -374,13 +376,14 @@ fn report(a: &Args, rows: &[Row], envs: &[&str], fit_seconds: f64) -> String {
         s,
         "PSNR by lobe count is the mean over the maps; the chosen fit's PSNR is given per map.\n"
     );
-    let mut head = "| material | lobes | BRDF error 1 / 2 / 3 | PSNR 1 / 2 / 3 |".to_string();
+    let mut head =
+        "| material | lobes | BRDF error 1 / 2 / 3 | floor | PSNR 1 / 2 / 3 |".to_string();
     for e in envs {
         head += &format!(" {e} |");
     }
     head += " rel. RMSE | fit time |";
     let _ = writeln!(s, "{head}");
-    let _ = writeln!(s, "|{}", "---|".repeat(6 + envs.len()));
+    let _ = writeln!(s, "|{}", "---|".repeat(7 + envs.len()));
     for r in rows {
         let errs: Vec<String> = r
             .fitted
@@ -392,10 +395,11 @@ fn report(a: &Args, rows: &[Row], envs: &[&str], fit_seconds: f64) -> String {
             .map(|l| format!("{:.1}", mean(&psnrs(r, l))))
             .collect();
         let mut line = format!(
-            "| {} | {} | {} | {} |",
+            "| {} | {} | {} | {:.3} | {} |",
             r.name,
             r.fitted.best().lobes,
             errs.join(" / "),
+            r.fitted.floor,
             ps.join(" / ")
         );
         for p in psnrs(r, r.fitted.chosen) {

@@ -97,15 +97,37 @@ pub fn describe(fitted: &Fitted) -> String {
     let tried: Vec<String> = fitted
         .fits
         .iter()
-        .map(|f| format!("{}: {:.4}", f.lobes, f.error))
+        .map(|f| {
+            if f.image_error.is_nan() {
+                format!("{}: {:.4}", f.lobes, f.error)
+            } else {
+                format!(
+                    "{}: {:.4} / {:.2} dB",
+                    f.lobes,
+                    f.error,
+                    psnr(f.image_error)
+                )
+            }
+        })
         .collect();
+    let judged = if best.image_error.is_nan() {
+        String::new()
+    } else {
+        format!(", judge's PSNR {:.2} dB", psnr(best.image_error))
+    };
     format!(
-        "{} lobe{}, BRDF error {:.4} (relative RMSE, cosine-weighted; by lobes {})",
+        "{} lobe{}, BRDF error {:.4} (floor {:.4}){judged} (by lobes {})",
         best.lobes,
         if best.lobes == 1 { "" } else { "s" },
         best.error,
+        fitted.floor,
         tried.join(", ")
     )
+}
+
+/// PSNR of an RMSE-over-peak ratio.
+fn psnr(ratio: f64) -> f64 {
+    -20.0 * ratio.log10()
 }
 
 /// The bundle file: every fit of a run, as the presets ship them.
@@ -130,6 +152,9 @@ pub struct BundleEntry {
     pub lobes: usize,
     /// The BRDF error of the fit with 1, 2, 3 lobes (those tried).
     pub brdf_error: Vec<f64>,
+    /// The judge's image error (RMSE over peak) of each, if judged.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub image_error: Vec<f64>,
     /// The 108 control points.
     pub ctrl: Vec<f64>,
 }
@@ -146,6 +171,12 @@ impl Bundle {
                 name: f.best().material.name.clone(),
                 lobes: f.best().lobes,
                 brdf_error: f.fits.iter().map(|f| f.error).collect(),
+                image_error: f
+                    .fits
+                    .iter()
+                    .map(|f| f.image_error)
+                    .filter(|e| !e.is_nan())
+                    .collect(),
                 ctrl: f.best().material.ctrl.to_vec(),
             })
             .collect();

@@ -4,9 +4,11 @@
 //! samples of [`samples`].
 
 pub mod job;
+pub mod judge;
 pub mod lm;
 pub mod samples;
 
+use judge::Judge;
 use lm::Problem;
 use samples::{Grid, Tabulated};
 
@@ -20,8 +22,8 @@ use crate::spline::N_CTRL_POINTS;
 pub enum Lobes {
     /// Exactly this many (1 to 3).
     Fixed(usize),
-    /// 1, 2 and 3, keeping the fewest whose error is within [`Options::tolerance`] of
-    /// the 3-lobe fit's.
+    /// 1, 2 and 3, keeping the fewest whose error (the judge's, else the BRDF error) is
+    /// within [`Options::tolerance`] of the best's.
     Auto,
 }
 
@@ -30,13 +32,16 @@ pub enum Lobes {
 pub struct Options {
     /// Lobe count.
     pub lobes: Lobes,
-    /// Relative slack over the 3-lobe error allowed to a fit with fewer lobes.
+    /// Relative slack over the best error allowed to a fit with fewer lobes.
     pub tolerance: f64,
     /// The loss's scale c: residuals are taken on c ln(1 + f / c), linear below c and
     /// logarithmic above (infinite: linear).
     pub loss_scale: f64,
     /// Where the BRDF is sampled.
     pub grid: Grid,
+    /// Judge candidates and lobe counts by images under built-in lights ([`judge`]);
+    /// without, the BRDF error decides.
+    pub judge: bool,
 }
 
 impl Default for Options {
@@ -46,6 +51,7 @@ impl Default for Options {
             tolerance: 0.05,
             loss_scale: 1.0,
             grid: Grid::default(),
+            judge: true,
         }
     }
 }
@@ -59,6 +65,9 @@ pub struct Fit {
     pub material: Material,
     /// The BRDF's relative RMSE, cosine-weighted over the hemisphere ([`brdf_error`]).
     pub error: f64,
+    /// The judge's image error (RMSE over peak, mean over its lights; [`judge`]), NaN
+    /// when not judged.
+    pub image_error: f64,
 }
 
 /// The fits tried for one BRDF.
@@ -68,6 +77,9 @@ pub struct Fitted {
     pub fits: Vec<Fit>,
     /// Index into `fits` of the one kept.
     pub chosen: usize,
+    /// The smallest BRDF error any DSBRDF could reach: the share of the BRDF that varies
+    /// with phi_d, which the model cannot represent ([`samples::Tabulated::floor`]).
+    pub floor: f64,
 }
 
 impl Fitted {
@@ -79,6 +91,8 @@ impl Fitted {
 
 /// Exponents tried for a new lobe: broad to mirror-like.
 const START_EXPONENTS: [f64; 5] = [1e-3, 3.0, 30.0, 300.0, 3000.0];
+/// Loss scales a fit is refined with, as candidates for the judge.
+const REFINE_SCALES: [f64; 2] = [10.0, f64::INFINITY];
 /// LM steps for each start, and for the best start.
 const START_STEPS: usize = 20;
 const FINAL_STEPS: usize = 120;
@@ -173,26 +187,80 @@ pub fn fit(brdf: &dyn Isotropic, name: &str, options: &Options) -> Result<Fitted
             fits.push(p);
         }
     }
+    // Candidates per lobe count: the fit above, and the same refined with a loss that
+    // weighs large values more (c = 10, and linear); the judge keeps the one whose
+    // images are closest to the measured BRDF's.
+    let judge = if options.judge {
+        Some(Judge::new(brdf)?)
+    } else {
+        None
+    };
+    let targets: Vec<Vec<f64>> = (0..N_CHANNELS)
+        .map(|k| plane.target.iter().map(|t| t[k]).collect())
+        .collect();
     let mut fits = Vec::with_capacity(counts.len());
     for &lobes in &counts {
-        let mut ctrl = [0.0; N_PARAMS];
-        for (k, channel) in channels.iter().enumerate() {
-            write_channel(&mut ctrl, k, &channel[lobes - 1]);
+        let base: Vec<&Vec<f64>> = channels.iter().map(|c| &c[lobes - 1]).collect();
+        let mut candidates = vec![material_of(name, &base)?];
+        if judge.is_some() {
+            for &c in &REFINE_SCALES {
+                let refined: Vec<Vec<f64>> = base
+                    .iter()
+                    .zip(&targets)
+                    .map(|(p, t)| {
+                        let mut p = (*p).clone();
+                        Problem::new(&plane, t, c).solve(&mut p, FINAL_STEPS);
+                        p
+                    })
+                    .collect();
+                candidates.push(material_of(name, &refined.iter().collect::<Vec<_>>())?);
+            }
         }
-        let material = Material::new(name, &ctrl)?;
+        let (material, image_error) = match &judge {
+            Some(j) => candidates
+                .into_iter()
+                .map(|m| {
+                    let e = j.error(&m);
+                    (m, e)
+                })
+                .min_by(|a, b| a.1.total_cmp(&b.1))
+                .expect("one candidate at least"),
+            None => (candidates.remove(0), f64::NAN),
+        };
         let error = table.error(&material);
         fits.push(Fit {
             lobes,
             material,
             error,
+            image_error,
         });
     }
-    let best = fits.last().expect("one fit").error;
+    let score = |f: &Fit| {
+        if judge.is_some() {
+            f.image_error
+        } else {
+            f.error
+        }
+    };
+    let best = fits.iter().map(score).fold(f64::INFINITY, f64::min);
     let chosen = fits
         .iter()
-        .position(|f| f.error <= best * (1.0 + options.tolerance))
-        .expect("the last fit qualifies");
-    Ok(Fitted { fits, chosen })
+        .position(|f| score(f) <= best * (1.0 + options.tolerance))
+        .expect("the best fit qualifies");
+    Ok(Fitted {
+        fits,
+        chosen,
+        floor: table.floor(),
+    })
+}
+
+/// The material of each channel's log-parameters.
+fn material_of(name: &str, channels: &[&Vec<f64>]) -> Result<Material> {
+    let mut ctrl = [0.0; N_PARAMS];
+    for (k, p) in channels.iter().enumerate() {
+        write_channel(&mut ctrl, k, p);
+    }
+    Material::new(name, &ctrl)
 }
 
 /// Writes one channel's log-parameters as control points, lobes sorted by their mean

@@ -140,6 +140,30 @@ impl Tabulated {
         p
     }
 
+    /// The smallest BRDF error any DSBRDF can reach: that of the phi_d-averaged BRDF
+    /// itself, which is the best function of (theta_h, theta_d) alone in this weighting.
+    /// What is left is the BRDF's dependence on phi_d.
+    pub fn floor(&self) -> f64 {
+        let np = self.grid.phi_d;
+        let (mut num, mut den) = (0.0, 0.0);
+        for c in 0..self.angles.len() {
+            let w = &self.weights[c * np..(c + 1) * np];
+            let v = &self.values[c * np..(c + 1) * np];
+            let total: f64 = w.iter().sum();
+            if total <= 0.0 {
+                continue;
+            }
+            for k in 0..3 {
+                let mean = w.iter().zip(v).map(|(w, v)| w * v[k]).sum::<f64>() / total;
+                for (wi, vi) in w.iter().zip(v) {
+                    num += wi * (vi[k] - mean) * (vi[k] - mean);
+                    den += wi * vi[k] * vi[k];
+                }
+            }
+        }
+        if den > 0.0 { (num / den).sqrt() } else { 0.0 }
+    }
+
     /// The relative RMSE of `model` against the tabulated BRDF over all seen samples and
     /// channels: sqrt(sum w (model - f)^2 / sum w f^2).
     pub fn error(&self, model: &dyn Isotropic) -> f64 {

@@ -1,0 +1,97 @@
+//! Judging fits by the images they make: a small sphere under a few built-in lights,
+//! rendered with the measured BRDF (brute force, [`crate::brdf::render`]) and with each
+//! candidate material (the f64 reference layer), compared by RMSE over the image's peak.
+//!
+//! The lights are the built-in procedural sky ([`crate::defaults::procedural_env`]) with
+//! its sun turned to four azimuths (front-left, right, behind, left), so that highlights
+//! land at the centre, across and at the rim of the sphere. They are not the HDRIs the
+//! fit-quality report measures with, so the report's figures are not fitted to.
+
+use crate::brdf::Isotropic;
+use crate::brdf::render::render_measured;
+use crate::camera::Camera;
+use crate::defaults::procedural_env;
+use crate::envmap::{Convention, EnvMap};
+use crate::error::Result;
+use crate::material::Material;
+use crate::prepare::Prepared;
+use crate::scene::{NormalMap, Scene};
+
+/// The judging sphere's size and the lights' size.
+const SPHERE: usize = 32;
+const ENV: (usize, usize) = (32, 64);
+
+/// Measured images to compare candidates with.
+pub struct Judge {
+    normals: NormalMap,
+    envs: Vec<EnvMap>,
+    /// Per light: the measured image (f64) and its largest value.
+    measured: Vec<(Vec<[f64; 3]>, f64)>,
+    /// Pixels on the sphere.
+    mask: Vec<bool>,
+}
+
+impl Judge {
+    /// Renders `measured` under the judging lights.
+    pub fn new(measured: &dyn Isotropic) -> Result<Self> {
+        let normals = NormalMap::sphere(SPHERE);
+        let base = procedural_env(ENV.0, ENV.1, Convention::Equirect);
+        let envs: Vec<EnvMap> = (0..4)
+            .map(|q| {
+                let shift = q * ENV.1 / 4;
+                let mut texels = base.texels.clone();
+                for row in texels.chunks_exact_mut(ENV.1) {
+                    row.rotate_right(shift);
+                }
+                EnvMap {
+                    texels,
+                    ..base.clone()
+                }
+            })
+            .collect();
+        let mask: Vec<bool> = normals.normals.iter().map(|n| n[2] > 0.0).collect();
+        let mut images = Vec::with_capacity(envs.len());
+        for env in &envs {
+            let img = render_measured(measured, &normals, env, Camera::Orthographic)?;
+            let px: Vec<[f64; 3]> = img.pixels.iter().map(|p| p.map(f64::from)).collect();
+            let peak = px
+                .iter()
+                .zip(&mask)
+                .filter(|(_, m)| **m)
+                .flat_map(|(p, _)| p.iter().copied())
+                .fold(0.0f64, f64::max);
+            images.push((px, peak.max(1e-30)));
+        }
+        Ok(Judge {
+            normals,
+            envs,
+            measured: images,
+            mask,
+        })
+    }
+
+    /// The mean over the lights of RMSE / peak (10^(-PSNR/20)) of `material`'s images.
+    pub fn error(&self, material: &Material) -> f64 {
+        let mut total = 0.0;
+        for (env, (measured, peak)) in self.envs.iter().zip(&self.measured) {
+            let scene = Scene {
+                normals: self.normals.clone(),
+                env: env.clone(),
+                material: material.clone(),
+                camera: Camera::Orthographic,
+            };
+            let img = crate::reference::forward(&Prepared::new(&scene));
+            let (mut se, mut n) = (0.0, 0usize);
+            for ((a, b), &m) in img.iter().zip(measured).zip(&self.mask) {
+                if m {
+                    for k in 0..3 {
+                        se += (a[k] - b[k]) * (a[k] - b[k]);
+                    }
+                    n += 3;
+                }
+            }
+            total += (se / n.max(1) as f64).sqrt() / peak;
+        }
+        total / self.envs.len() as f64
+    }
+}
