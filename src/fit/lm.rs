@@ -15,7 +15,12 @@ pub const SCALE_BOUNDS: (f64, f64) = (-18.420680743952367, 3.6888794541139363);
 /// See [`SCALE_BOUNDS`].
 pub const EXPONENT_BOUNDS: (f64, f64) = (-6.907755278982137, 9.210340371976184);
 
+/// How much a negative model value costs: a sample that is below 0 by the targets' RMS
+/// costs as much as (NEGATIVE_WEIGHT)^2 / samples, i.e. 1e4 times an even share.
+const NEGATIVE_WEIGHT: f64 = 100.0;
+
 /// One channel's least-squares problem over the plane.
+#[derive(Clone)]
 pub struct Problem<'a> {
     plane: &'a Plane,
     /// g(target) per sample.
@@ -28,6 +33,14 @@ pub struct Problem<'a> {
     /// which keeps lobes from growing spikes at theta_h ~ 0, where the measure gives
     /// samples little weight but a point-sampled render can land on them.
     scale_max: f64,
+    /// The sign of each lobe's scales (+1 or -1; missing: +1): a lobe with negative
+    /// scales dips below its neighbours near theta_h = 0 and, with a small exponent,
+    /// lets the sum rise towards grazing theta_h, as fabrics' BRDFs do.
+    signs: Vec<f64>,
+    /// Weight of the residual min(f, 0) per sample: a sum of lobes with negative scales
+    /// must not go below 0 where the BRDF is seen, even where the cosines give that place
+    /// little weight (a negative BRDF is no material).
+    sqrt_negative: f64,
 }
 
 impl<'a> Problem<'a> {
@@ -44,13 +57,25 @@ impl<'a> Problem<'a> {
         let sqrt_w = plane.weight.iter().map(|w| (w / norm).sqrt()).collect();
         let peak = target.iter().fold(0.0f64, |m, &t| m.max(t));
         let scale_max = (4.0 * peak).ln_1p().max(1e-6).ln().min(SCALE_BOUNDS.1);
+        let n = target.len().max(1) as f64;
+        let g_rms = (g_target.iter().map(|t| t * t).sum::<f64>() / n)
+            .sqrt()
+            .max(1e-300);
         Problem {
+            sqrt_negative: NEGATIVE_WEIGHT / (n.sqrt() * g_rms),
             plane,
             g_target,
             sqrt_w,
             c,
             scale_max,
+            signs: Vec::new(),
         }
+    }
+
+    /// The same problem with lobe s's scales of sign `signs[s]`.
+    pub fn with_signs(mut self, signs: &[f64]) -> Self {
+        self.signs = signs.to_vec();
+        self
     }
 
     /// The model's value and, if `jac` is given, its derivatives with respect to the
@@ -62,9 +87,10 @@ impl<'a> Problem<'a> {
         let mut f = 0.0;
         for (s, lobe) in ctrl.chunks_exact(PER_LOBE).enumerate() {
             let (c0, c1) = lobe.split_at(N_CTRL_POINTS);
+            let sign = self.signs.get(s).copied().unwrap_or(1.0);
             let (mut m0, mut m1) = (0.0, 0.0);
             for j in 0..N_CTRL_POINTS {
-                m0 += b[j] * c0[j];
+                m0 += b[j] * sign * c0[j];
                 m1 += b[j] * c1[j];
             }
             let xp = if x > 0.0 { (m1 * ln_x).exp() } else { 0.0 };
@@ -75,7 +101,7 @@ impl<'a> Problem<'a> {
                 let d1 = e * m0 * xp * ln_x;
                 let row = &mut jac[s * PER_LOBE..(s + 1) * PER_LOBE];
                 for j in 0..N_CTRL_POINTS {
-                    row[j] = d0 * b[j] * c0[j];
+                    row[j] = d0 * b[j] * sign * c0[j];
                     row[N_CTRL_POINTS + j] = d1 * b[j] * c1[j];
                 }
             }
@@ -88,8 +114,10 @@ impl<'a> Problem<'a> {
         let ctrl: Vec<f64> = p.iter().map(|v| v.exp()).collect();
         (0..self.g_target.len())
             .map(|i| {
-                let r = self.sqrt_w[i] * (g(self.model(i, &ctrl, None), self.c) - self.g_target[i]);
-                r * r
+                let f = self.model(i, &ctrl, None);
+                let r = self.sqrt_w[i] * (g(f, self.c) - self.g_target[i]);
+                let neg = self.sqrt_negative * f.min(0.0);
+                r * r + neg * neg
             })
             .sum()
     }
@@ -114,6 +142,20 @@ impl<'a> Problem<'a> {
                 let f = self.model(i, &ctrl, Some(&mut jac));
                 let dg = self.sqrt_w[i] * g_prime(f, self.c);
                 let r = self.sqrt_w[i] * (g(f, self.c) - self.g_target[i]);
+                // the negativity residual has the model's Jacobian times sqrt_negative;
+                // both are accumulated, one with a scaled copy
+                let negative = f < 0.0;
+                if negative {
+                    let k = self.sqrt_negative;
+                    let rn = k * f;
+                    for (row, &jr) in jac.iter().enumerate() {
+                        grad[row] += k * jr * rn;
+                        let a_row = &mut a[row * n..row * n + row + 1];
+                        for (av, &jc) in a_row.iter_mut().zip(&jac[..=row]) {
+                            *av += k * k * jr * jc;
+                        }
+                    }
+                }
                 for v in jac.iter_mut() {
                     *v *= dg;
                 }
@@ -215,18 +257,20 @@ fn solve_damped(a: &[f64], grad: &[f64], lambda: f64, n: usize, x: &mut [f64]) -
     x.iter().all(|v| v.is_finite())
 }
 
-/// The loss's transform g(v) = c ln(1 + v / c) (v for infinite c).
+/// The loss's transform g(v) = c ln(1 + v / c) (v for infinite c); v itself below 0,
+/// where only a lobe with negative scales can take the model, so that going there costs
+/// as much as the slope at 0 says.
 fn g(v: f64, c: f64) -> f64 {
-    if c.is_finite() {
-        c * (v.max(0.0) / c).ln_1p()
+    if c.is_finite() && v > 0.0 {
+        c * (v / c).ln_1p()
     } else {
         v
     }
 }
 
 fn g_prime(v: f64, c: f64) -> f64 {
-    if c.is_finite() {
-        1.0 / (1.0 + v.max(0.0) / c)
+    if c.is_finite() && v > 0.0 {
+        1.0 / (1.0 + v / c)
     } else {
         1.0
     }

@@ -147,22 +147,35 @@ pub fn fit(brdf: &dyn Isotropic, name: &str, options: &Options) -> Result<Fitted
     let first_scale = mean.ln_1p().clamp(1e-3, 5.0).ln();
 
     let max_count = *counts.last().expect("at least one count");
-    let mut shapes: Vec<Vec<f64>> = Vec::with_capacity(max_count);
+    // Each lobe count's shapes: log-parameters and the sign of each lobe's scales. A new
+    // lobe is tried with either sign; the signs of a fit are those of the fit with one
+    // lobe fewer, plus the new lobe's.
+    let mut shapes: Vec<(Vec<f64>, Vec<f64>)> = Vec::with_capacity(max_count);
     for lobes in 1..=max_count {
-        let mut best: Option<(f64, Vec<f64>)> = None;
-        for &e in &START_EXPONENTS {
-            let mut p = shapes.last().cloned().unwrap_or_default();
-            let scale = if lobes == 1 { first_scale } else { 0.1f64.ln() };
-            p.extend([scale; N_CTRL_POINTS]);
-            p.extend([e.ln(); N_CTRL_POINTS]);
-            let cost = gray_problem.solve(&mut p, START_STEPS);
-            if best.as_ref().is_none_or(|(c, _)| cost < *c) {
-                best = Some((cost, p));
+        let (prev, prev_signs) = shapes.last().cloned().unwrap_or_default();
+        let mut best: Option<(f64, Vec<f64>, Vec<f64>)> = None;
+        let new_signs: &[f64] = if lobes == 1 { &[1.0] } else { &[1.0, -1.0] };
+        for &sign in new_signs {
+            let mut signs = prev_signs.clone();
+            signs.push(sign);
+            let problem = gray_problem.clone().with_signs(&signs);
+            for &e in &START_EXPONENTS {
+                let mut p = prev.clone();
+                let scale = if lobes == 1 { first_scale } else { 0.1f64.ln() };
+                p.extend([scale; N_CTRL_POINTS]);
+                p.extend([e.ln(); N_CTRL_POINTS]);
+                let cost = problem.solve(&mut p, START_STEPS);
+                if best.as_ref().is_none_or(|(c, _, _)| cost < *c) {
+                    best = Some((cost, p, signs.clone()));
+                }
             }
         }
-        let (_, mut p) = best.expect("starts tried");
-        gray_problem.solve(&mut p, FINAL_STEPS);
-        shapes.push(p);
+        let (_, mut p, signs) = best.expect("starts tried");
+        gray_problem
+            .clone()
+            .with_signs(&signs)
+            .solve(&mut p, FINAL_STEPS);
+        shapes.push((p, signs));
     }
 
     // Each channel from the mean's shapes, nested like them: a fit with more lobes also
@@ -171,14 +184,15 @@ pub fn fit(brdf: &dyn Isotropic, name: &str, options: &Options) -> Result<Fitted
     let mut channels: Vec<Vec<Vec<f64>>> = vec![Vec::new(); N_CHANNELS];
     for (k, fits) in channels.iter_mut().enumerate() {
         let target: Vec<f64> = plane.target.iter().map(|t| t[k]).collect();
-        let problem = Problem::new(&plane, &target, options.loss_scale);
         for lobes in 1..=max_count {
-            let mut p = shapes[lobes - 1].clone();
+            let (shape, signs) = &shapes[lobes - 1];
+            let problem = Problem::new(&plane, &target, options.loss_scale).with_signs(signs);
+            let mut p = shape.clone();
             let cost = problem.solve(&mut p, FINAL_STEPS);
             if let Some(prev) = fits.last() {
                 let mut q: Vec<f64> = prev.clone();
                 q.extend([lm::SCALE_BOUNDS.0 + 4.0; N_CTRL_POINTS]);
-                q.extend(shapes[lobes - 1][(lobes - 1) * lm::PER_LOBE + N_CTRL_POINTS..].iter());
+                q.extend(shape[(lobes - 1) * lm::PER_LOBE + N_CTRL_POINTS..].iter());
                 let c = problem.solve(&mut q, FINAL_STEPS);
                 if c < cost {
                     p = q;
@@ -200,8 +214,9 @@ pub fn fit(brdf: &dyn Isotropic, name: &str, options: &Options) -> Result<Fitted
         .collect();
     let mut fits = Vec::with_capacity(counts.len());
     for &lobes in &counts {
+        let signs = &shapes[lobes - 1].1;
         let base: Vec<&Vec<f64>> = channels.iter().map(|c| &c[lobes - 1]).collect();
-        let mut candidates = vec![material_of(name, &base)?];
+        let mut candidates = vec![material_of(name, &base, signs)?];
         if judge.is_some() {
             for &c in &REFINE_SCALES {
                 let refined: Vec<Vec<f64>> = base
@@ -209,11 +224,17 @@ pub fn fit(brdf: &dyn Isotropic, name: &str, options: &Options) -> Result<Fitted
                     .zip(&targets)
                     .map(|(p, t)| {
                         let mut p = (*p).clone();
-                        Problem::new(&plane, t, c).solve(&mut p, FINAL_STEPS);
+                        Problem::new(&plane, t, c)
+                            .with_signs(signs)
+                            .solve(&mut p, FINAL_STEPS);
                         p
                     })
                     .collect();
-                candidates.push(material_of(name, &refined.iter().collect::<Vec<_>>())?);
+                candidates.push(material_of(
+                    name,
+                    &refined.iter().collect::<Vec<_>>(),
+                    signs,
+                )?);
             }
         }
         let (material, image_error) = match &judge {
@@ -254,11 +275,11 @@ pub fn fit(brdf: &dyn Isotropic, name: &str, options: &Options) -> Result<Fitted
     })
 }
 
-/// The material of each channel's log-parameters.
-fn material_of(name: &str, channels: &[&Vec<f64>]) -> Result<Material> {
+/// The material of each channel's log-parameters, lobe s's scales of sign `signs[s]`.
+fn material_of(name: &str, channels: &[&Vec<f64>], signs: &[f64]) -> Result<Material> {
     let mut ctrl = [0.0; N_PARAMS];
     for (k, p) in channels.iter().enumerate() {
-        write_channel(&mut ctrl, k, p);
+        write_channel(&mut ctrl, k, p, signs);
     }
     Material::new(name, &ctrl)
 }
@@ -266,16 +287,19 @@ fn material_of(name: &str, channels: &[&Vec<f64>]) -> Result<Material> {
 /// Writes one channel's log-parameters as control points, lobes sorted by their mean
 /// exponent (broadest first); a lobe whose exponents all sit at the lower bound becomes
 /// constant (m1 = 0), which the renderers treat as such.
-fn write_channel(ctrl: &mut [f64; N_PARAMS], k: usize, p: &[f64]) {
-    let mut lobes: Vec<&[f64]> = p.chunks_exact(lm::PER_LOBE).collect();
+fn write_channel(ctrl: &mut [f64; N_PARAMS], k: usize, p: &[f64], signs: &[f64]) {
+    let mut lobes: Vec<(&[f64], f64)> = p
+        .chunks_exact(lm::PER_LOBE)
+        .zip(signs.iter().copied())
+        .collect();
     let mean_exponent = |l: &[f64]| l[N_CTRL_POINTS..].iter().sum::<f64>();
-    lobes.sort_by(|a, b| mean_exponent(a).total_cmp(&mean_exponent(b)));
-    for (s, lobe) in lobes.iter().enumerate() {
+    lobes.sort_by(|a, b| mean_exponent(a.0).total_cmp(&mean_exponent(b.0)));
+    for (s, &(lobe, sign)) in lobes.iter().enumerate() {
         let flat = lobe[N_CTRL_POINTS..]
             .iter()
             .all(|&q| q <= lm::EXPONENT_BOUNDS.0 + 1e-9);
         for j in 0..N_CTRL_POINTS {
-            ctrl[idx(k, s, 0, j)] = lobe[j].exp().min(MAX_ABS_SCALE);
+            ctrl[idx(k, s, 0, j)] = sign * lobe[j].exp().min(MAX_ABS_SCALE);
             ctrl[idx(k, s, 1, j)] = if flat {
                 0.0
             } else {
