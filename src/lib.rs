@@ -31,6 +31,7 @@ pub mod brdf;
 pub mod camera;
 pub mod cpu;
 pub mod defaults;
+pub mod edit;
 pub mod envmap;
 pub mod error;
 pub mod fit;

@@ -64,6 +64,27 @@ DSBRDF cannot represent, is averaged with the weights cos theta_i cos theta_o. W
 is within --tolerance of the 3-lobe fit's is kept; unused lobes have m0 = 0.
 --bundle writes every fit into one file, the format of the shipped presets.";
 
+const FIT_IMAGE_EXAMPLES: &str = "\
+Examples:
+  matedit fit --image jade.exr --sphere -o fits/jade
+  matedit fit --image photo.exr --normals normals.npy --mask mask.png --fit-env 8x16 -o fits/photo
+  matedit fit --image ball.exr --sphere 256 --env studio.exr --init gold -o fits/ball
+
+Optimises the 108 control points (and, without --env, a low-resolution light) with Adam
+through the layer's backward pass. Writes DIR/material.json, env.exr, render.exr,
+render.png, loss.png, normals.npy, target.exr and report.json (psnr, steps, seconds).";
+
+const TRANSFER_EXAMPLES: &str = "\
+Examples:
+  matedit transfer --shape-light fits/jade --material fits/metal -o jade_as_metal.png";
+
+const GRID_EXAMPLES: &str = "\
+Examples:
+  matedit grid fits/jade fits/metal fits/clay -o grid.png
+
+Row i keeps fit i's shape and light, column j brings fit j's material; the diagonal
+shows the images fitted to.";
+
 const PRESETS_EXAMPLES: &str = "\
 Examples:
   matedit presets
@@ -96,6 +117,15 @@ enum Command {
     /// Fit the DSBRDF to a measured BRDF (a MERL table or NBRDF networks).
     #[command(after_help = FIT_EXAMPLES)]
     FitBrdf(FitArgs),
+    /// Fit a material (and the light) to an image by inverse rendering.
+    #[command(after_help = FIT_IMAGE_EXAMPLES)]
+    Fit(FitImageArgs),
+    /// Render one fit's shape and light with another fit's material.
+    #[command(after_help = TRANSFER_EXAMPLES)]
+    Transfer(TransferArgs),
+    /// Every fit's shape and light with every fit's material, as one picture.
+    #[command(after_help = GRID_EXAMPLES)]
+    Grid(GridArgs),
     /// List the built-in materials, or print one as a material JSON file.
     #[command(after_help = PRESETS_EXAMPLES)]
     Presets {
@@ -132,6 +162,94 @@ struct FitArgs {
     /// With --lobes auto: the relative slack over the 3-lobe BRDF error allowed to fewer lobes.
     #[arg(long, value_name = "REL", default_value_t = 0.05, value_parser = parse_tolerance_slack)]
     tolerance: f64,
+}
+
+#[derive(Args)]
+struct FitImageArgs {
+    /// The image to fit: .exr or .npy (linear RGB, H x W x 3) or .png (sRGB, decoded to linear).
+    #[arg(long, value_name = "FILE")]
+    image: PathBuf,
+    /// The object's normals (as for `render`), the image's size.
+    #[arg(
+        long,
+        value_name = "FILE",
+        conflicts_with = "sphere",
+        required_unless_present = "sphere"
+    )]
+    normals: Option<PathBuf>,
+    /// The object is a unit sphere filling the image (a matcap, a rendered ball); N, if given, must be the image's size.
+    #[arg(long, value_name = "N", num_args = 0..=1, default_missing_value = "0")]
+    sphere: Option<u32>,
+    /// Pixels that count (.png, .exr or .npy, first channel above half) [default: every pixel on the object].
+    #[arg(long, value_name = "FILE")]
+    mask: Option<PathBuf>,
+    /// The light is known: this lat-long map (only the material is fitted).
+    #[arg(long, value_name = "FILE", conflicts_with = "fit_env")]
+    env: Option<PathBuf>,
+    /// Fit the light too, as an HxW map [default: 16x32, when no --env].
+    #[arg(long, value_name = "HxW")]
+    fit_env: Option<EnvSize>,
+    /// With --env: its size, as for `render` [default: 64x128].
+    #[arg(long, value_name = "HxW|full", requires = "env")]
+    env_size: Option<EnvSize>,
+    /// Texel convention: 'equirect' or 'paper' [default: equirect].
+    #[arg(long, value_name = "NAME")]
+    convention: Option<Convention>,
+    /// Perspective camera with this vertical field of view in degrees [default: orthographic].
+    #[arg(long, value_name = "DEG", value_parser = parse_fov)]
+    fov: Option<f64>,
+    /// The preset the material starts from (signs of its lobes are kept).
+    #[arg(long, value_name = "PRESET", default_value = matedit::presets::DEFAULT, value_parser = clap::builder::PossibleValuesParser::new(matedit::presets::names()))]
+    init: String,
+    /// Most Adam steps (the fit stops earlier when the loss stalls).
+    #[arg(long, value_name = "K", default_value_t = 600, value_parser = clap::value_parser!(u32).range(1..))]
+    steps: u32,
+    /// Fit on the image box-filtered to at most N pixels on its longer side (0: full size); the report's PSNR is at full size.
+    #[arg(long, value_name = "N", default_value_t = 128)]
+    work_size: u32,
+    /// Backend, as for `render`.
+    #[arg(long, value_name = "auto|gpu|cpu|reference", default_value = "auto")]
+    device: Device,
+    /// Worker threads of the CPU paths [default: one per core].
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
+    threads: Option<u16>,
+    /// Output folder (created if missing).
+    #[arg(short, long, value_name = "DIR")]
+    output: PathBuf,
+}
+
+#[derive(Args)]
+struct TransferArgs {
+    /// The fit folder whose normals, light and camera are kept.
+    #[arg(long, value_name = "DIR")]
+    shape_light: PathBuf,
+    /// The fit folder (or material .json file) whose material is used.
+    #[arg(long, value_name = "DIR|FILE")]
+    material: PathBuf,
+    /// Output image (.exr, .npy or .png).
+    #[arg(short, long, value_name = "OUT")]
+    output: PathBuf,
+    /// Backend, as for `render`.
+    #[arg(long, value_name = "auto|gpu|cpu|reference", default_value = "auto")]
+    device: Device,
+}
+
+#[derive(Args)]
+struct GridArgs {
+    /// Fit folders from `matedit fit`, in the grid's order.
+    #[arg(value_name = "DIR", required = true, num_args = 2..)]
+    fits: Vec<PathBuf>,
+    /// Output picture (.png).
+    #[arg(short, long, value_name = "FILE")]
+    output: PathBuf,
+    /// Pixels per cell side.
+    #[arg(long, value_name = "N", default_value_t = 128, value_parser = clap::value_parser!(u32).range(8..=2048))]
+    cell: u32,
+    #[command(flatten)]
+    preview: PreviewArgs,
+    /// Backend, as for `render`.
+    #[arg(long, value_name = "auto|gpu|cpu|reference", default_value = "auto")]
+    device: Device,
 }
 
 fn parse_lobes(v: &str) -> Result<matedit::fit::Lobes, String> {
@@ -199,6 +317,12 @@ struct RenderArgs {
     output: Option<PathBuf>,
     #[command(flatten)]
     scene: SceneArgs,
+    #[command(flatten)]
+    preview: PreviewArgs,
+}
+
+#[derive(Args)]
+struct PreviewArgs {
     /// PNG only: exposure in stops; values are multiplied by 2^EV.
     #[arg(
         long,
@@ -210,6 +334,15 @@ struct RenderArgs {
     /// PNG only: 'clamp' clips values above 1 (after exposure), 'reinhard' maps x to x / (1 + x); then sRGB encoding.
     #[arg(long, value_name = "clamp|reinhard", default_value = "clamp")]
     tonemap: Tonemap,
+}
+
+impl PreviewArgs {
+    fn preview(&self) -> Preview {
+        Preview {
+            exposure: self.exposure,
+            tonemap: self.tonemap,
+        }
+    }
 }
 
 #[derive(Args)]
@@ -364,10 +497,7 @@ fn render(args: &RenderArgs) -> Result<(), Failure> {
         renderer.render_with(&loaded.batch, &accuracy)
     })?;
     report(&accuracy, &choices);
-    let preview = Preview {
-        exposure: args.exposure,
-        tonemap: args.tonemap,
-    };
+    let preview = args.preview.preview();
     let mut staged = Vec::with_capacity(images.len());
     for (s, image) in plan.scenes.iter().zip(&images) {
         let bytes = io::encode_image(&s.output, image, &preview).map_err(runtime)?;
@@ -565,6 +695,236 @@ fn fit_brdf(args: &FitArgs) -> Result<(), Failure> {
     Ok(())
 }
 
+fn threads(n: Option<u16>) {
+    if let Some(n) = n {
+        // only fails if the pool was already built, which nothing here does first
+        let _ = rayon::ThreadPoolBuilder::new()
+            .num_threads(usize::from(n))
+            .build_global();
+    }
+}
+
+fn fit_image(args: &FitImageArgs) -> Result<(), Failure> {
+    use matedit::edit::{self, Light};
+    // checked before minutes of fitting: the folder (created at the end, with its
+    // parents) must not be a file, nor be under one
+    if let Some(blocker) = args.output.ancestors().find(|p| p.exists() && !p.is_dir()) {
+        return Err(Error::file(
+            &args.output,
+            format!("{} is a file, not a folder", blocker.display()),
+        )
+        .into());
+    }
+    let target = io::load_image(&args.image)?;
+    let normals = match (&args.normals, args.sphere) {
+        (Some(p), _) => io::load_normals(p)?,
+        (None, Some(n)) => {
+            if target.width != target.height || (n != 0 && n as usize != target.width) {
+                return Err(Error::file(
+                    &args.image,
+                    format!(
+                        "size {}x{} is not the {}sphere's",
+                        target.width,
+                        target.height,
+                        if n == 0 {
+                            String::new()
+                        } else {
+                            format!("{n}x{n} ")
+                        }
+                    ),
+                )
+                .into());
+            }
+            matedit::NormalMap::sphere(target.width)
+        }
+        (None, None) => unreachable!("clap requires --normals or --sphere"),
+    };
+    if (normals.width, normals.height) != (target.width, target.height) {
+        return Err(Error::file(
+            &args.image,
+            format!(
+                "size {}x{} differs from the normals' {}x{}",
+                target.width, target.height, normals.width, normals.height
+            ),
+        )
+        .into());
+    }
+    let mask = match &args.mask {
+        None => None,
+        Some(p) => {
+            let (w, h, m) = io::load_mask(p)?;
+            if (w, h) != (target.width, target.height) {
+                return Err(Error::file(
+                    p,
+                    format!(
+                        "size {w}x{h} differs from the image's {}x{}",
+                        target.width, target.height
+                    ),
+                )
+                .into());
+            }
+            Some(m)
+        }
+    };
+    let inputs = edit::Inputs::new(normals, target, mask).map_err(|e| match e {
+        Error::Invalid(m) => Error::file(&args.image, m),
+        other => other,
+    })?;
+    let convention = args.convention.unwrap_or_default();
+    let (light, light_name) = match &args.env {
+        Some(p) => {
+            let loaded = io::load_env(p, convention)?;
+            let env = io::resample::fit(loaded.env, args.env_size.unwrap_or_default(), p)?;
+            (Light::Fixed(env), p.display().to_string())
+        }
+        None => {
+            let (height, width) = match args.fit_env {
+                Some(EnvSize::Size { height, width }) => (height, width),
+                Some(EnvSize::Full) => {
+                    return Err(Error::Invalid("--fit-env takes HxW, not 'full'".into()).into());
+                }
+                None => (16, 32),
+            };
+            (
+                Light::Fit { height, width },
+                format!("fitted {height}x{width}"),
+            )
+        }
+    };
+    let camera = match args.fov {
+        Some(fov_y_deg) => matedit::Camera::Perspective { fov_y_deg },
+        None => matedit::Camera::Orthographic,
+    };
+    let init = matedit::presets::lookup(&args.init).expect("clap checks preset names");
+    let options = edit::Options {
+        convention,
+        camera,
+        steps: args.steps as usize,
+        work_size: args.work_size as usize,
+        ..edit::Options::new(init, light)
+    };
+    threads(args.threads);
+    let renderer = Renderer::new(args.device)?;
+    eprintln!("matedit: device: {}", renderer.describe());
+    let bar = std::io::stderr().is_terminal().then(|| {
+        let bar = indicatif::ProgressBar::new(u64::from(args.steps));
+        if let Ok(style) =
+            indicatif::ProgressStyle::with_template("fitting {bar:30} {pos}/{len} {elapsed} {msg}")
+        {
+            bar.set_style(style);
+        }
+        bar
+    });
+    let fitted = edit::fit(&renderer, &inputs, &options, &mut |step, loss| {
+        if let Some(b) = &bar {
+            b.set_position(step as u64 + 1);
+            b.set_message(format!("loss {loss:.3e}"));
+        }
+    })?;
+    if let Some(b) = bar {
+        b.finish_and_clear();
+    }
+    let batch = matedit::Batch::single(matedit::Scene {
+        normals: inputs.normals.clone(),
+        env: fitted.env.clone(),
+        material: fitted.material.clone(),
+        camera,
+    })?;
+    let render = renderer.render(&batch)?.remove(0);
+    let psnr = edit::psnr(&render, &inputs.target, &inputs.mask);
+    let masked = |v: &[[f32; 3]]| -> Vec<[f32; 3]> {
+        v.iter()
+            .zip(&inputs.mask)
+            .map(|(p, &m)| if m { *p } else { [0.0; 3] })
+            .collect()
+    };
+    let normals = matedit::NormalMap {
+        normals: masked(&inputs.normals.normals),
+        ..inputs.normals.clone()
+    };
+    let target = matedit::Image {
+        pixels: masked(&inputs.target.pixels),
+        ..inputs.target.clone()
+    };
+    let report = edit::dir::Report {
+        psnr,
+        steps: fitted.steps,
+        seconds: fitted.seconds,
+        loss: fitted.losses.last().copied().unwrap_or(f64::NAN),
+        work_size: [fitted.work_size.0, fitted.work_size.1],
+        image: args.image.display().to_string(),
+        light: light_name,
+        convention: convention.name().to_string(),
+        fov: args.fov,
+        init: args.init.clone(),
+        device: renderer.describe(),
+    };
+    edit::dir::write(
+        &args.output,
+        &edit::dir::Output {
+            material: &fitted.material,
+            env: &fitted.env,
+            normals: &normals,
+            target: &target,
+            render: &render,
+            losses: &fitted.losses,
+            report: &report,
+        },
+    )
+    .map_err(runtime)?;
+    eprintln!(
+        "matedit: fitted in {:.1} s ({} steps at {}x{}), PSNR {:.2} dB; wrote {}",
+        fitted.seconds,
+        fitted.steps,
+        fitted.work_size.0,
+        fitted.work_size.1,
+        psnr,
+        args.output.display()
+    );
+    Ok(())
+}
+
+fn transfer(args: &TransferArgs) -> Result<(), Failure> {
+    use matedit::edit::dir;
+    io::check_output(&args.output, &[Format::Exr, Format::Npy, Format::Png])?;
+    let a = dir::read(&args.shape_light)?;
+    let material = if args.material.is_dir() {
+        dir::read(&args.material)?.material
+    } else {
+        io::load_material(&args.material)?
+    };
+    let renderer = Renderer::new(args.device)?;
+    let image = dir::transfer(&renderer, &a, &material)?;
+    let bytes = io::encode_image(&args.output, &image, &Preview::default())?;
+    io::write_atomic(&args.output, &bytes).map_err(runtime)?;
+    eprintln!("matedit: wrote {}", args.output.display());
+    Ok(())
+}
+
+fn grid(args: &GridArgs) -> Result<(), Failure> {
+    use matedit::edit::dir;
+    io::check_output(&args.output, &[Format::Png])?;
+    let fits = args
+        .fits
+        .iter()
+        .map(|p| dir::read(p))
+        .collect::<Result<Vec<_>, _>>()?;
+    let renderer = Renderer::new(args.device)?;
+    let preview = args.preview.preview();
+    let (w, h, rgb) = with_progress("rendering the grid", || {
+        dir::grid(&renderer, &fits, args.cell as usize, &preview)
+    })?;
+    let bytes = io::png::encode_rgb8(w, h, &rgb)?;
+    io::write_atomic(&args.output, &bytes).map_err(runtime)?;
+    eprintln!(
+        "matedit: wrote {} ({}x{} cells)",
+        args.output.display(),
+        fits.len(),
+        fits.len()
+    );
+    Ok(())
+}
+
 fn presets(name: Option<&str>) -> Result<(), Failure> {
     match name {
         None => {
@@ -605,6 +965,9 @@ fn run(cli: Cli) -> Result<(), Failure> {
             Ok(())
         }
         Command::FitBrdf(args) => fit_brdf(&args),
+        Command::Fit(args) => fit_image(&args),
+        Command::Transfer(args) => transfer(&args),
+        Command::Grid(args) => grid(&args),
         Command::Presets { name } => presets(name.as_deref()),
     }
 }

@@ -114,10 +114,13 @@ fn shipped_presets_are_non_negative_where_seen() {
             p.name
         );
         if low / peak < worst.0 {
-            worst = (low / peak, &p.name);
+            worst = (low / peak, p.name);
         }
     }
-    eprintln!("most negative where seen: {} at {:.2e} of its peak", worst.1, worst.0);
+    eprintln!(
+        "most negative where seen: {} at {:.2e} of its peak",
+        worst.1, worst.0
+    );
     // the fabrics and other materials brighter at grazing angles use them
     assert!(with_negative_lobes > 0);
 }

@@ -240,6 +240,94 @@ pub fn load_env(path: &Path, convention: Convention) -> Result<LoadedEnv> {
     Ok(LoadedEnv { env, clamped })
 }
 
+/// Loads an image to fit to: EXR or NPY (linear RGB, H x W x 3, every value finite) or PNG
+/// (8 or 16 bits, sRGB-decoded to linear; grey is replicated, alpha ignored).
+pub fn load_image(path: &Path) -> Result<Image> {
+    let format = format_of(path, "an image", &[Format::Exr, Format::Npy, Format::Png])?;
+    let (width, height, pixels) = if format == Format::Png {
+        let d = png::decode(path)?;
+        let max = d.max_value();
+        let pixels = d
+            .samples
+            .chunks_exact(d.channels)
+            .map(|p| {
+                let rgb = if d.channels >= 3 {
+                    [p[0], p[1], p[2]]
+                } else {
+                    [p[0]; 3]
+                };
+                rgb.map(|v| png::srgb_decode(v as f32 / max as f32))
+            })
+            .collect();
+        (d.width, d.height, pixels)
+    } else {
+        let r = read_raster(path, "an image")?;
+        if let Some((i, c, what)) = first_non_finite(&r.pixels) {
+            return Err(Error::file(
+                path,
+                format!(
+                    "pixel (column {}, row {}) channel {} is {what}",
+                    i % r.width,
+                    i / r.width,
+                    CHANNELS[c]
+                ),
+            ));
+        }
+        let pixels = r.pixels.iter().map(|p| p.map(|v| v as f32)).collect();
+        (r.width, r.height, pixels)
+    };
+    Ok(Image {
+        width,
+        height,
+        pixels,
+    })
+}
+
+/// Loads a mask (EXR, NPY or PNG, any channels): a pixel counts where its first channel is
+/// above half (PNG: half the largest sample; EXR and NPY: 0.5).
+pub fn load_mask(path: &Path) -> Result<(usize, usize, Vec<bool>)> {
+    let format = format_of(path, "a mask", &[Format::Exr, Format::Npy, Format::Png])?;
+    if format == Format::Png {
+        let d = png::decode(path)?;
+        let half = d.max_value() / 2.0;
+        let mask = d
+            .samples
+            .chunks_exact(d.channels)
+            .map(|p| f64::from(p[0]) > half)
+            .collect();
+        return Ok((d.width, d.height, mask));
+    }
+    let r = match format {
+        Format::Exr => exr::read_rgb(path)?,
+        _ => {
+            let a = npy::read(path)?;
+            match a.shape[..] {
+                [h, w] if h > 0 && w > 0 => Raster {
+                    width: w,
+                    height: h,
+                    pixels: a.data.iter().map(|&v| [v; 3]).collect(),
+                },
+                _ => npy_raster(path, a)?,
+            }
+        }
+    };
+    if let Some((i, _, what)) = first_non_finite(&r.pixels) {
+        return Err(Error::file(
+            path,
+            format!(
+                "pixel (column {}, row {}) is {what}",
+                i % r.width,
+                i / r.width
+            ),
+        ));
+    }
+    Ok((
+        r.width,
+        r.height,
+        r.pixels.iter().map(|p| p[0] > 0.5).collect(),
+    ))
+}
+
 /// Loads an upstream gradient dLoss/dImage (EXR or NPY, H x W x 3, every value finite).
 pub fn load_upstream(path: &Path) -> Result<Image> {
     let r = read_raster(path, "an upstream gradient")?;

@@ -54,6 +54,15 @@ pub fn srgb_encode(x: f32) -> f32 {
     }
 }
 
+/// The inverse of [`srgb_encode`]: an sRGB-encoded value in [0, 1] to linear.
+pub fn srgb_decode(x: f32) -> f32 {
+    if x <= 0.040_45 {
+        x / 12.92
+    } else {
+        ((x + 0.055) / 1.055).powf(2.4)
+    }
+}
+
 /// The 8-bit display value of linear channel value `v` under `preview`.
 pub fn display_value(v: f32, preview: &Preview) -> u8 {
     let x = v * preview.exposure.exp2();

@@ -1,0 +1,289 @@
+//! Fit folders: what `matedit fit` writes and what `transfer` and `grid` read.
+//!
+//! A folder holds `material.json` (the fitted material), `env.exr` (the light: fitted, or
+//! the given map as it was used), `normals.npy` (the object's normals, 0 outside the
+//! mask), `target.exr` (the image fitted to, 0 outside the mask), `render.exr` and
+//! `render.png` (the fit rendered at the image's size), `loss.png` (the loss curve) and
+//! `report.json` (`psnr`, `steps`, `seconds` and how the scene was set up).
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use crate::envmap::{Convention, EnvMap};
+use crate::error::{Error, Result};
+use crate::io::{self, Preview};
+use crate::{Batch, Camera, Image, Material, NormalMap, Renderer, Scene};
+
+/// `report.json`.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Report {
+    /// PSNR of `render.exr` against the image over the mask, in dB (peak: the image's
+    /// largest value there).
+    pub psnr: f64,
+    /// Adam steps taken.
+    pub steps: usize,
+    /// Seconds the fit took (not counting reading and writing files).
+    pub seconds: f64,
+    /// The last loss.
+    pub loss: f64,
+    /// The size the fit ran at, [width, height].
+    pub work_size: [usize; 2],
+    /// The image fitted to.
+    pub image: String,
+    /// "fitted HxW" or the map that was given.
+    pub light: String,
+    /// Texel convention of env.exr.
+    pub convention: String,
+    /// The camera's vertical field of view in degrees; absent for orthographic.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fov: Option<f64>,
+    /// The material the fit started from.
+    pub init: String,
+    /// The backend.
+    pub device: String,
+}
+
+/// A fit folder as read back.
+#[derive(Clone, Debug)]
+pub struct FitDir {
+    /// The folder.
+    pub path: PathBuf,
+    /// Its material.
+    pub material: Material,
+    /// Its light.
+    pub env: EnvMap,
+    /// Its normals (0 outside the mask).
+    pub normals: NormalMap,
+    /// The image it was fitted to (0 outside the mask).
+    pub target: Image,
+    /// Its camera.
+    pub camera: Camera,
+    /// Its report.
+    pub report: Report,
+}
+
+/// What a fit writes.
+pub struct Output<'a> {
+    /// The fitted material.
+    pub material: &'a Material,
+    /// The light.
+    pub env: &'a EnvMap,
+    /// Normals, 0 outside the mask.
+    pub normals: &'a NormalMap,
+    /// The image, 0 outside the mask.
+    pub target: &'a Image,
+    /// The fit rendered at the image's size.
+    pub render: &'a Image,
+    /// The loss per step.
+    pub losses: &'a [f64],
+    /// The report.
+    pub report: &'a Report,
+}
+
+fn file_error(path: &Path, e: Error) -> Error {
+    match e {
+        Error::File { .. } => e,
+        other => Error::file(path, other.to_string()),
+    }
+}
+
+/// Writes a fit folder (created if missing): every file or, on failure, none.
+pub fn write(dir: &Path, out: &Output) -> Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(dir)
+        .map_err(|e| Error::file(dir, format!("cannot create the folder: {e}")))?;
+    let preview = Preview::default();
+    let normals = Image {
+        width: out.normals.width,
+        height: out.normals.height,
+        pixels: out.normals.normals.clone(),
+    };
+    let report = serde_json::to_vec_pretty(out.report)
+        .map_err(|e| Error::file(dir.join("report.json"), e.to_string()))?;
+    let files: Vec<(&str, Vec<u8>)> = vec![
+        (
+            "material.json",
+            io::json::encode_material(out.material, Some("fitted by matedit fit")),
+        ),
+        (
+            "env.exr",
+            io::exr::encode_rgb(out.env.width, out.env.height, &out.env.texels)?,
+        ),
+        (
+            "normals.npy",
+            io::npy::encode_rgb(normals.width, normals.height, &normals.pixels),
+        ),
+        (
+            "target.exr",
+            io::exr::encode_rgb(out.target.width, out.target.height, &out.target.pixels)?,
+        ),
+        (
+            "render.exr",
+            io::exr::encode_rgb(out.render.width, out.render.height, &out.render.pixels)?,
+        ),
+        ("render.png", io::png::encode_preview(out.render, &preview)?),
+        ("loss.png", super::plot::loss_png(out.losses)?),
+        ("report.json", report),
+    ];
+    let mut staged = Vec::new();
+    for (name, bytes) in files {
+        staged.push(io::stage(&dir.join(name), &bytes)?);
+    }
+    io::commit_all(staged)
+}
+
+/// Reads a fit folder written by [`write`].
+pub fn read(dir: &Path) -> Result<FitDir> {
+    if !dir.is_dir() {
+        return Err(Error::file(
+            dir,
+            "no such folder (a fit folder from `matedit fit`)",
+        ));
+    }
+    let report_path = dir.join("report.json");
+    let bytes = io::read_bytes(&report_path)?;
+    let report: Report = serde_json::from_slice(&bytes)
+        .map_err(|e| Error::file(&report_path, format!("not a fit report: {e}")))?;
+    let convention: Convention = report
+        .convention
+        .parse()
+        .map_err(|e: String| Error::file(&report_path, format!("'convention': {e}")))?;
+    let camera = match report.fov {
+        Some(fov_y_deg) => Camera::Perspective { fov_y_deg },
+        None => Camera::Orthographic,
+    };
+    camera.validate().map_err(|e| file_error(&report_path, e))?;
+    let material = io::json::read_material(&dir.join("material.json"))?;
+    let env = io::load_env(&dir.join("env.exr"), convention)?.env;
+    let normals = io::load_normals(&dir.join("normals.npy"))?;
+    let target_path = dir.join("target.exr");
+    let t = io::read_raster(&target_path, "an image")?;
+    let target = Image {
+        width: t.width,
+        height: t.height,
+        pixels: t.pixels.iter().map(|p| p.map(|v| v as f32)).collect(),
+    };
+    if (t.width, t.height) != (normals.width, normals.height) {
+        return Err(Error::file(
+            &target_path,
+            format!(
+                "size {}x{} differs from normals.npy's {}x{}",
+                t.width, t.height, normals.width, normals.height
+            ),
+        ));
+    }
+    Ok(FitDir {
+        path: dir.to_path_buf(),
+        material,
+        env,
+        normals,
+        target,
+        camera,
+        report,
+    })
+}
+
+/// `shape_light`'s normals, light and camera with `material`.
+pub fn transfer(renderer: &Renderer, shape_light: &FitDir, material: &Material) -> Result<Image> {
+    let batch = Batch::single(Scene {
+        normals: shape_light.normals.clone(),
+        env: shape_light.env.clone(),
+        material: material.clone(),
+        camera: shape_light.camera,
+    })?;
+    Ok(renderer.render(&batch)?.remove(0))
+}
+
+/// Box-resamples `image` to `width` x `height`: each output pixel is the mean of the
+/// input pixels whose centres fall in it (the nearest one when none does).
+pub fn resize(image: &Image, width: usize, height: usize) -> Image {
+    let mut out = Image::zeros(width, height);
+    let (sx, sy) = (
+        image.width as f64 / width as f64,
+        image.height as f64 / height as f64,
+    );
+    for y in 0..height {
+        let (y0, y1) = (y as f64 * sy, (y + 1) as f64 * sy);
+        let rows =
+            (y0 - 0.5).ceil().max(0.0) as usize..((y1 - 0.5).ceil() as usize).min(image.height);
+        for x in 0..width {
+            let (x0, x1) = (x as f64 * sx, (x + 1) as f64 * sx);
+            let cols =
+                (x0 - 0.5).ceil().max(0.0) as usize..((x1 - 0.5).ceil() as usize).min(image.width);
+            let (mut sum, mut n) = ([0.0f64; 3], 0usize);
+            for yy in rows.clone() {
+                for xx in cols.clone() {
+                    for k in 0..3 {
+                        sum[k] += f64::from(image.pixels[yy * image.width + xx][k]);
+                    }
+                    n += 1;
+                }
+            }
+            out.pixels[y * width + x] = if n > 0 {
+                sum.map(|v| (v / n as f64) as f32)
+            } else {
+                let yy = (((y as f64 + 0.5) * sy) as usize).min(image.height - 1);
+                let xx = (((x as f64 + 0.5) * sx) as usize).min(image.width - 1);
+                image.pixels[yy * image.width + xx]
+            };
+        }
+    }
+    out
+}
+
+/// Gap between grid cells, in pixels.
+const GAP: usize = 4;
+
+/// The grid of transfers as an 8-bit RGB picture: row i keeps fit i's shape and light,
+/// column j brings fit j's material, and the diagonal shows the images fitted to. Cells
+/// are `cell` pixels square (each image resampled), on a dark background.
+pub fn grid(
+    renderer: &Renderer,
+    fits: &[FitDir],
+    cell: usize,
+    preview: &Preview,
+) -> Result<(usize, usize, Vec<u8>)> {
+    let n = fits.len();
+    let side = n * cell + (n + 1) * GAP;
+    let mut rgb = vec![24u8; side * side * 3];
+    for (i, a) in fits.iter().enumerate() {
+        for (j, b) in fits.iter().enumerate() {
+            let image = if i == j {
+                a.target.clone()
+            } else {
+                transfer(renderer, a, &b.material)?
+            };
+            let small = resize(&image, cell, cell);
+            let (ox, oy) = (GAP + j * (cell + GAP), GAP + i * (cell + GAP));
+            for y in 0..cell {
+                for x in 0..cell {
+                    let p = small.pixels[y * cell + x];
+                    let o = ((oy + y) * side + ox + x) * 3;
+                    for k in 0..3 {
+                        rgb[o + k] = io::png::display_value(p[k], preview);
+                    }
+                }
+            }
+        }
+    }
+    Ok((side, side, rgb))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn resize_averages_blocks_and_keeps_sizes() {
+        let img = Image {
+            width: 4,
+            height: 2,
+            pixels: (0..8).map(|i| [i as f32, 0.0, 1.0]).collect(),
+        };
+        let half = resize(&img, 2, 1);
+        assert_eq!(half.pixels, vec![[2.5, 0.0, 1.0], [4.5, 0.0, 1.0]]);
+        let up = resize(&img, 8, 4);
+        assert_eq!(up.pixels[0], [0.0, 0.0, 1.0]);
+        assert_eq!(up.pixels[8 * 4 - 1], [7.0, 0.0, 1.0]);
+    }
+}
