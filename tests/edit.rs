@@ -305,6 +305,19 @@ fn fit_transfer_and_grid_from_the_command_line() {
         assert!(report["psnr"].as_f64().expect("psnr") > 15.0, "{report}");
         assert!(report["steps"].as_u64().expect("steps") >= 1);
         assert!(report["seconds"].as_f64().expect("seconds") > 0.0);
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            let mode = std::fs::metadata(dir.join("render.png"))
+                .expect("stat")
+                .permissions()
+                .mode();
+            assert_eq!(
+                mode & 0o777,
+                0o644,
+                "outputs are ordinary files, not private temporaries"
+            );
+        }
         // the material file is a material matedit reads
         matedit::io::load_material(&dir.join("material.json")).expect("a material");
         dirs.push(dir);

@@ -17,9 +17,10 @@
 //! Material and light are ambiguous (a brighter light and a darker material give the same
 //! image). With `Light::Fit` two priors on the map's log radiance resolve it: smoothness
 //! (squared differences between neighbouring texels, which also fills the directions that
-//! no pixel sees) and a level: the mean log radiance is held near the level at which the
-//! initial material renders the target's mean brightness, so the material keeps the
-//! brightness of the preset it starts from and the light takes the rest.
+//! no pixel sees) and a level: each channel's mean log radiance is held near the level at
+//! which the initial material renders the target's mean brightness under a uniform light,
+//! so the light's mean colour stays neutral, the material takes the object's colour and
+//! keeps about the brightness of the preset it starts from, and the light takes the rest.
 
 pub mod adam;
 pub mod dir;
@@ -320,7 +321,7 @@ fn compress(x: f64, c: f64) -> (f64, f64) {
 
 /// The map priors for log radiance `w` (height x width x 3): value and gradient (added to
 /// `g`). Smoothness: mean squared difference of neighbours (columns wrap around); level:
-/// the squared distance of the mean log radiance from `level`.
+/// the squared distance of each channel's mean log radiance from `level`.
 fn priors(
     w: &[f64],
     height: usize,
@@ -350,11 +351,16 @@ fn priors(
             g[3 * b + k] -= gd;
         }
     }
-    let mean = w.iter().sum::<f64>() / w.len() as f64;
-    let d = mean - level;
-    value += options.level * d * d;
-    for gi in g.iter_mut() {
-        *gi += 2.0 * options.level * d / w.len() as f64;
+    // per channel: the light's mean colour is held neutral, so that colour goes to the
+    // material (a grey light and a green material, not a magenta light and a greener one)
+    let texels = (w.len() / 3) as f64;
+    for k in 0..3 {
+        let mean = w.iter().skip(k).step_by(3).sum::<f64>() / texels;
+        let d = mean - level;
+        value += options.level * d * d;
+        for gi in g.iter_mut().skip(k).step_by(3) {
+            *gi += 2.0 * options.level * d / texels;
+        }
     }
     value
 }

@@ -446,6 +446,14 @@ pub fn stage(path: &Path, bytes: &[u8]) -> Result<Staged> {
         .tempfile_in(dir)
         .map_err(fail)?;
     file.write_all(bytes).map_err(fail)?;
+    #[cfg(unix)]
+    {
+        // temporary files are private (0600); an output is an ordinary file
+        use std::os::unix::fs::PermissionsExt;
+        file.as_file()
+            .set_permissions(std::fs::Permissions::from_mode(0o644))
+            .map_err(fail)?;
+    }
     file.as_file().sync_all().map_err(fail)?;
     Ok(Staged {
         file,
