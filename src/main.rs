@@ -72,7 +72,7 @@ Examples:
 
 Optimises the 108 control points (and, without --env, a low-resolution light) with Adam
 through the layer's backward pass. Writes DIR/material.json, env.exr, render.exr,
-render.png, loss.png, normals.npy, target.exr and report.json (psnr, steps, seconds).";
+render.png, compare.png, loss.png, normals.npy, target.exr and report.json (psnr, steps, seconds).";
 
 const TRANSFER_EXAMPLES: &str = "\
 Examples:

@@ -294,6 +294,7 @@ fn fit_transfer_and_grid_from_the_command_line() {
             "target.exr",
             "render.exr",
             "render.png",
+            "compare.png",
             "loss.png",
             "report.json",
         ] {

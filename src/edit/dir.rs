@@ -3,7 +3,8 @@
 //! A folder holds `material.json` (the fitted material), `env.exr` (the light: fitted, or
 //! the given map as it was used), `normals.npy` (the object's normals, 0 outside the
 //! mask), `target.exr` (the image fitted to, 0 outside the mask), `render.exr` and
-//! `render.png` (the fit rendered at the image's size), `loss.png` (the loss curve) and
+//! `render.png` (the fit rendered at the image's size), `compare.png` (the image and the
+//! fit side by side), `loss.png` (the loss curve) and
 //! `report.json` (`psnr`, `steps`, `seconds` and how the scene was set up).
 
 use std::path::{Path, PathBuf};
@@ -122,6 +123,10 @@ pub fn write(dir: &Path, out: &Output) -> Result<Vec<PathBuf>> {
             io::exr::encode_rgb(out.render.width, out.render.height, &out.render.pixels)?,
         ),
         ("render.png", io::png::encode_preview(out.render, &preview)?),
+        (
+            "compare.png",
+            side_by_side(&[out.target, out.render], &preview)?,
+        ),
         ("loss.png", super::plot::loss_png(out.losses)?),
         ("report.json", report),
     ];
@@ -130,6 +135,24 @@ pub fn write(dir: &Path, out: &Output) -> Result<Vec<PathBuf>> {
         staged.push(io::stage(&dir.join(name), &bytes)?);
     }
     io::commit_all(staged)
+}
+
+/// Images of one size side by side, `GAP` pixels apart, as PNG bytes.
+fn side_by_side(images: &[&Image], preview: &Preview) -> Result<Vec<u8>> {
+    let (w, h) = (images[0].width, images[0].height);
+    let total = images.len() * w + (images.len() - 1) * GAP;
+    let mut rgb = vec![24u8; total * h * 3];
+    for (n, image) in images.iter().enumerate() {
+        for y in 0..h {
+            for x in 0..w {
+                let o = (y * total + n * (w + GAP) + x) * 3;
+                for k in 0..3 {
+                    rgb[o + k] = io::png::display_value(image.pixels[y * w + x][k], preview);
+                }
+            }
+        }
+    }
+    io::png::encode_rgb8(total, h, &rgb)
 }
 
 /// Reads a fit folder written by [`write`].
