@@ -308,15 +308,22 @@ fn fit_transfer_and_grid_from_the_command_line() {
         assert!(report["seconds"].as_f64().expect("seconds") > 0.0);
         #[cfg(unix)]
         {
+            // what a file created here gets under the test's umask
             use std::os::unix::fs::PermissionsExt;
+            let probe = tmp.path().join("probe");
+            std::fs::write(&probe, b"").expect("writes");
+            let normal = std::fs::metadata(&probe)
+                .expect("stat")
+                .permissions()
+                .mode();
             let mode = std::fs::metadata(dir.join("render.png"))
                 .expect("stat")
                 .permissions()
                 .mode();
             assert_eq!(
                 mode & 0o777,
-                0o644,
-                "outputs are ordinary files, not private temporaries"
+                normal & 0o777,
+                "outputs get a normal file's mode"
             );
         }
         // the material file is a material matedit reads

@@ -440,20 +440,17 @@ pub fn stage(path: &Path, bytes: &[u8]) -> Result<Staged> {
     use std::io::Write;
     let dir = parent_dir(path);
     let fail = |e: std::io::Error| Error::file(path, format!("cannot write: {e}"));
-    let mut file = tempfile::Builder::new()
-        .prefix(".matedit-")
-        .suffix(".tmp")
-        .tempfile_in(dir)
-        .map_err(fail)?;
-    file.write_all(bytes).map_err(fail)?;
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(".matedit-").suffix(".tmp");
     #[cfg(unix)]
     {
-        // temporary files are private (0600); an output is an ordinary file
+        // temporary files are private (0600); an output is an ordinary file: 0666 less
+        // the user's umask, applied by the system when the file is created
         use std::os::unix::fs::PermissionsExt;
-        file.as_file()
-            .set_permissions(std::fs::Permissions::from_mode(0o644))
-            .map_err(fail)?;
+        builder.permissions(std::fs::Permissions::from_mode(0o666));
     }
+    let mut file = builder.tempfile_in(dir).map_err(fail)?;
+    file.write_all(bytes).map_err(fail)?;
     file.as_file().sync_all().map_err(fail)?;
     Ok(Staged {
         file,
