@@ -6,6 +6,11 @@ use crate::envmap::EnvMap;
 use crate::error::{Error, Result, invalid};
 use crate::material::{Material, N_PARAMS};
 
+/// Longest normal accepted: 1 and the rounding of a normalised f32 vector, with room. A
+/// longer normal makes x = h.n exceed 1, and x^m1 (m1 up to 1e4) overflow: at |n| = 1 + 1e-5
+/// x^1e4 is at most e^0.1, so exp(40 x^m1) stays far inside f32.
+pub const MAX_NORMAL_LENGTH: f64 = 1.0 + 1e-5;
+
 /// A normal whose length is below this is background: it renders 0 and gets no gradient.
 pub const BACKGROUND_EPS: f64 = 1e-6;
 
@@ -125,7 +130,8 @@ impl NormalMap {
         len2 < BACKGROUND_EPS * BACKGROUND_EPS
     }
 
-    /// Checks the size and that every component is finite.
+    /// Checks the size, that every component is finite and that no normal is longer than
+    /// [`MAX_NORMAL_LENGTH`].
     pub fn validate(&self) -> Result<()> {
         if self.width == 0 || self.height == 0 {
             return Err(invalid!(
@@ -147,6 +153,19 @@ impl NormalMap {
                 let what = if v.is_nan() { "NaN" } else { "infinite" };
                 return Err(invalid!(
                     "normals: pixel ({}, {}) is {what}",
+                    i % self.width,
+                    i / self.width
+                ));
+            }
+            let len = n
+                .iter()
+                .map(|&v| f64::from(v) * f64::from(v))
+                .sum::<f64>()
+                .sqrt();
+            if len > MAX_NORMAL_LENGTH {
+                return Err(invalid!(
+                    "normals: pixel ({}, {}) has length {len}; normals may not be longer than 1 \
+                     (+1e-5): normalise them (the file loaders do)",
                     i % self.width,
                     i / self.width
                 ));

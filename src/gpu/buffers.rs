@@ -71,7 +71,7 @@ pub fn output(device: &wgpu::Device, label: &str, bytes: u64) -> wgpu::Buffer {
 }
 
 /// Records padded to whole uniform chunks of [`CHUNK_BYTES`]: returns the buffer and the
-/// number of records in each chunk (none for no records).
+/// number of records in each chunk (one empty chunk for no records).
 pub fn uniform_chunks<T: bytemuck::Pod + Default>(
     device: &wgpu::Device,
     label: &str,
@@ -83,7 +83,14 @@ pub fn uniform_chunks<T: bytemuck::Pod + Default>(
     padded.resize(chunks * per_chunk, T::default());
     let bytes: &[u8] = bytemuck::cast_slice(&padded);
     debug_assert_eq!(bytes.len() as u64, chunks as u64 * CHUNK_BYTES);
-    let sizes = records.chunks(per_chunk).map(|c| c.len() as u32).collect();
+    // no records (an all-black map, a map whose texels all have zero solid angle, an
+    // upstream gradient of zeros) is one empty chunk: the passes then write their zero
+    // sums, instead of binding an empty table of dispatches (a validation error)
+    let sizes = if records.is_empty() {
+        vec![0]
+    } else {
+        records.chunks(per_chunk).map(|c| c.len() as u32).collect()
+    };
     (
         upload(device, label, bytes, wgpu::BufferUsages::UNIFORM),
         sizes,
