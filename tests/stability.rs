@@ -146,22 +146,14 @@ fn env_levels_fail_under_a_hard_sun_and_the_choice_avoids_them() {
     let exact = sweeps::run(&cpu, &scene, &Method::EXACT).expect("runs");
     let exact_img = sweeps::outputs(&exact)[0].clone();
     let env4 = lod::render(&cpu, &scene, &"env4".parse().expect("method")).expect("runs");
-    let img: Vec<f64> = env4
-        .pixels
-        .iter()
-        .flatten()
-        .map(|&v| f64::from(v))
-        .collect();
-    let err = sweeps::rel_err(&img, &exact_img);
+    let off = |i: &matedit::Image| {
+        let v: Vec<f64> = i.pixels.iter().flatten().map(|&v| f64::from(v)).collect();
+        sweeps::rel_err(&v, &exact_img)
+    };
+    let err = off(&env4);
     assert!(err > 0.1, "env4 under a hard sun is only {err:e} off");
     let (chosen, choice) = lod::render_within(&cpu, &scene, 1e-2).expect("chooses");
-    let img: Vec<f64> = chosen
-        .pixels
-        .iter()
-        .flatten()
-        .map(|&v| f64::from(v))
-        .collect();
-    let err = sweeps::rel_err(&img, &exact_img);
+    let err = off(&chosen);
     eprintln!("chosen {choice}: {err:e}");
     assert!(err <= 1e-2, "chosen {choice} is {err:e} off");
     assert!(
