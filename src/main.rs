@@ -569,11 +569,27 @@ fn grad(args: &GradArgs) -> Result<(), Failure> {
         renderer.backward_with(&loaded.batch, &upstream, &accuracy)
     })?;
     report(&accuracy, &choices);
+    // every scene's files are staged before any is put in place; on a failure the files
+    // already in place and the folders this run created are removed: a batch is written
+    // whole or not at all
+    let mut created = Vec::new();
+    let result = write_grads(&plan, &loaded.batch, &grads, &mut created);
+    if result.is_err() {
+        io::remove_created(&created);
+    }
+    result
+}
+
+fn write_grads(
+    plan: &Plan,
+    batch: &matedit::Batch,
+    grads: &[matedit::Gradients],
+    created: &mut Vec<PathBuf>,
+) -> Result<(), Failure> {
     let mut staged = Vec::new();
-    for ((spec, scene), g) in plan.scenes.iter().zip(loaded.batch.scenes()).zip(&grads) {
+    for ((spec, scene), g) in plan.scenes.iter().zip(batch.scenes()).zip(grads) {
         let dir = &spec.output;
-        std::fs::create_dir_all(dir)
-            .map_err(|e| runtime(Error::file(dir, format!("cannot create the folder: {e}"))))?;
+        created.extend(io::create_dirs(dir).map_err(runtime)?);
         let env = &scene.env;
         let n = &scene.normals;
         let files = [

@@ -554,6 +554,38 @@ fn grad_batch() {
     }
 }
 
+/// A batch whose last write fails leaves nothing: not the first scene's files, nor the
+/// folder the run created for them (here `g1/d_env.npy` is a folder, so putting that file
+/// in place fails after `g0`'s files are in place).
+#[test]
+fn grad_batch_failing_half_way_leaves_nothing() {
+    let d = dir();
+    write_npy(&d.path().join("up.npy"), 8, 8, &vec![[1.0f32; 3]; 64]);
+    std::fs::create_dir_all(d.path().join("g1").join("d_env.npy")).unwrap();
+    let manifest = d.path().join("g.json");
+    write_manifest(
+        &manifest,
+        r#"{"env_size": "4x8", "scenes": [
+            {"output": "g0", "sphere": 8, "upstream": "up.npy"},
+            {"output": "g1", "sphere": 8, "upstream": "up.npy"}
+        ]}"#,
+    );
+    let out = matedit()
+        .args(["grad", "--batch", path_str(&manifest), "--device", "cpu"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(
+        err.lines().filter(|l| l.starts_with("error")).count(),
+        1,
+        "{err}"
+    );
+    assert!(err.contains("d_env.npy"), "{err}");
+    assert!(!d.path().join("g0").exists(), "the run's folder was left behind");
+    assert_eq!(listing(&d.path().join("g1")), ["d_env.npy"]);
+}
+
 #[test]
 fn info_describes_inputs() {
     let d = dir();

@@ -91,8 +91,15 @@ fn file_error(path: &Path, e: Error) -> Error {
 
 /// Writes a fit folder (created if missing): every file or, on failure, none.
 pub fn write(dir: &Path, out: &Output) -> Result<Vec<PathBuf>> {
-    std::fs::create_dir_all(dir)
-        .map_err(|e| Error::file(dir, format!("cannot create the folder: {e}")))?;
+    let created = io::create_dirs(dir)?;
+    let result = write_files(dir, out);
+    if result.is_err() {
+        io::remove_created(&created);
+    }
+    result
+}
+
+fn write_files(dir: &Path, out: &Output) -> Result<Vec<PathBuf>> {
     let preview = Preview::default();
     let normals = Image {
         width: out.normals.width,

@@ -463,6 +463,26 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     stage(path, bytes)?.commit().map(|_| ())
 }
 
+/// Creates `dir` and its missing parents; returns the folders it created, outermost
+/// first, so that a failed run can take them back with [`remove_created`].
+pub fn create_dirs(dir: &Path) -> Result<Vec<PathBuf>> {
+    let missing: Vec<PathBuf> = dir
+        .ancestors()
+        .take_while(|p| !p.as_os_str().is_empty() && !p.exists())
+        .map(Path::to_path_buf)
+        .collect();
+    std::fs::create_dir_all(dir)
+        .map_err(|e| Error::file(dir, format!("cannot create the folder: {e}")))?;
+    Ok(missing.into_iter().rev().collect())
+}
+
+/// Removes folders made by [`create_dirs`], innermost first, where they are still empty.
+pub fn remove_created(dirs: &[PathBuf]) {
+    for d in dirs.iter().rev() {
+        let _ = std::fs::remove_dir(d);
+    }
+}
+
 /// Puts staged files in place. On a failure, removes those already put in place by this
 /// call, so that a batch is written whole or not at all (as far as the file system allows).
 pub fn commit_all(staged: Vec<Staged>) -> Result<Vec<PathBuf>> {
