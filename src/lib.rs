@@ -89,7 +89,7 @@ impl std::str::FromStr for Device {
 /// A backend works on [`prepare::Prepared`] scenes: the levels of detail in [`lod`] hand
 /// it reduced scenes (a downsampled map, a table's nodes as pixels), so every backend runs
 /// every approximation.
-pub trait Backend {
+pub trait Backend: Send + Sync {
     /// A one-line description: which backend and adapter.
     fn describe(&self) -> String;
     /// One image per prepared scene (`width` x `height`, 0 off its pixels).

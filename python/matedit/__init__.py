@@ -1,0 +1,101 @@
+"""matedit: the rendering layer of Liu et al., "Material Editing Using a Physically Based
+Rendering Network" (ICCV 2017), on NumPy arrays, with its backward pass.
+
+    import matedit
+    normals = matedit.sphere(128)                  # (128, 128, 3) float32
+    env = matedit.sky(64, 128)                     # (64, 128, 3) float32, or load_env(path)
+    ctrl = matedit.preset("gold-metallic-paint")   # (108,) float64
+    image = matedit.render(normals, env, ctrl)     # (128, 128, 3) float32
+    d_env, d_normals, d_ctrl = matedit.backward(normals, env, ctrl, upstream)
+
+Arrays may carry a leading batch axis: normals (B, H, W, 3), env (B, H_L, W_L, 3), ctrl
+(B, 108); an input given once is shared by the batch. normals, env and upstream are
+float32; ctrl is float64 or float32. Invalid input raises ValueError with the library's
+one-line message; a device failure raises RuntimeError.
+
+`matedit.torch` (imported on its own: `import matedit.torch`) has the PyTorch operator.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+import threading
+
+import numpy as np
+
+# Without it the Vulkan loader prints "XDG_RUNTIME_DIR is invalid" lines while looking for
+# a GPU on headless machines; the variable has no other use here (the CLI does the same).
+os.environ.setdefault("XDG_RUNTIME_DIR", tempfile.gettempdir())
+
+from ._matedit import Renderer, load_env, load_normals, preset, presets, sky, sphere
+
+__all__ = [
+    "Renderer",
+    "render",
+    "backward",
+    "default_renderer",
+    "presets",
+    "preset",
+    "load_env",
+    "load_normals",
+    "sphere",
+    "sky",
+]
+
+_lock = threading.Lock()
+_default: dict = {}
+
+
+def default_renderer(device: str = "auto") -> Renderer:
+    """The shared renderer for `device`, made on first use."""
+    with _lock:
+        r = _default.get(device)
+        if r is None:
+            r = Renderer(device)
+            _default[device] = r
+        return r
+
+
+def _f32(name: str, a) -> np.ndarray:
+    a = np.asarray(a)
+    if a.dtype != np.float32:
+        raise ValueError(f"{name}: dtype {a.dtype}, expected float32")
+    return a
+
+
+def _ctrl(a) -> np.ndarray:
+    a = np.asarray(a)
+    if a.dtype not in (np.float32, np.float64):
+        raise ValueError(f"ctrl: dtype {a.dtype}, expected float64 or float32")
+    return a.astype(np.float64, copy=False)
+
+
+def render(normals, env, ctrl, *, fov=None, convention="equirect", device="auto", tolerance=None):
+    """The image(s), float32 (H, W, 3) or (B, H, W, 3).
+
+    fov: vertical field of view in degrees of a perspective camera (None: orthographic).
+    convention: "equirect" or "paper". device: "auto", "cpu", "gpu" or "reference".
+    tolerance: None for the exact layer, or the relative error a level of detail may have.
+    """
+    return default_renderer(device).render(
+        _f32("normals", normals),
+        _f32("env", env),
+        _ctrl(ctrl),
+        fov=fov,
+        convention=convention,
+        tolerance=tolerance,
+    )
+
+
+def backward(normals, env, ctrl, upstream, *, fov=None, convention="equirect", device="auto", tolerance=None):
+    """(d_env, d_normals, d_ctrl), float32, for dLoss/dImage `upstream`."""
+    return default_renderer(device).backward(
+        _f32("normals", normals),
+        _f32("env", env),
+        _ctrl(ctrl),
+        _f32("upstream", upstream),
+        fov=fov,
+        convention=convention,
+        tolerance=tolerance,
+    )
