@@ -186,10 +186,10 @@ fn stack<'py>(
     rows: Vec<&[[f32; 3]]>,
 ) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
     let b = rows.len();
-    let flat: Vec<f32> = rows
-        .into_iter()
-        .flat_map(|r| r.iter().flatten().copied())
-        .collect();
+    let mut flat: Vec<f32> = Vec::with_capacity(b * h * w * 3);
+    for r in rows {
+        flat.extend_from_slice(bytemuck::cast_slice(r));
+    }
     let shape = if batched {
         vec![b, h, w, 3]
     } else {
