@@ -2,11 +2,7 @@
 // src/gpu/layout.rs, checked by tests/shaders.rs), the spline basis (mirrors src/spline.rs),
 // the half vector and the lobe math (mirror src/reference/common.rs). No entry point.
 
-// Texels per uniform chunk: 252 * 256 bytes = 64512 bytes <= 64 KiB, a multiple of 256.
-const TEXEL_CHUNK: u32 = 252u;
-// Pixels per uniform chunk: 1344 * 48 bytes = 64512 bytes.
-const PIXEL_CHUNK: u32 = 1344u;
-// Threads per workgroup in every pass.
+// Threads per workgroup in every pass, and records per workgroup-memory tile.
 const WG: u32 = 64u;
 const HALF_PI: f32 = 1.5707963267948966;
 // log(x) is taken of max(x, TINY) so that it is finite; x <= 0 is handled by selects.
@@ -17,11 +13,13 @@ const HALF_VECTOR_EPS: f32 = 1e-6;
 
 // One dispatch's parameters. Kept in sync with `Params` in src/gpu/layout.rs.
 struct Params {
-    // pixels in the pixel list (per-pixel passes) or in the uniform pixel chunk (texel pass)
+    // pixels bound (per-pixel passes: one invocation each; backward_texel: looped over);
+    // reduce_slices: the vec4 elements of one slice
     n_pixels: u32,
-    // texels in the uniform texel chunk (per-pixel passes) or in the texel list (texel pass)
+    // texels bound (per-pixel passes: looped over; backward_texel: one invocation each;
+    // reduce_ctrl: summed)
     n_texels: u32,
-    // 1: the first chunk of a sum, so write instead of add
+    // 1: the first range of a sum, so write instead of add
     first: u32,
     // 1: perspective camera, so h, theta_d and the coefficients depend on the pair
     perspective: u32,
@@ -29,8 +27,10 @@ struct Params {
     n_lobes: u32,
     // perspective camera: the number of constant lobes after the active ones in lc
     n_const: u32,
-    _pad0: u32,
-    _pad1: u32,
+    // records of the looped-over list in one slice (slice = workgroup_id.y)
+    slice_len: u32,
+    // slices (reduce_slices: the partial sums per element)
+    n_slices: u32,
     // cc[(k * 2 + t) * 6 + j] = (ctrl[idx(k, 0, t, j)], ctrl[idx(k, 1, t, j)], ctrl[idx(k, 2, t, j)], 0)
     cc: array<vec4<f32>, 36>,
     // lc[(q * 2 + t) * 6 + j]: the same over channels (R, G, B) for the q-th lobe of the

@@ -1,18 +1,15 @@
 //! Host side of shaders/backward_texel.wgsl, reduce_ctrl.wgsl and backward_normal.wgsl.
 
-use super::buffers::{
-    ParamsTable, Readback, dispatch_chunks, output, storage, uniform_chunks, whole, window,
-};
+use super::buffers::{ParamsTable, bind, output, reduce_slices, storage, tiled};
 use super::forward::{encode_per_pixel, scatter_pixels};
-use super::layout::{CHUNK_BYTES, PIXEL_CHUNK, Params, Pixel, Texel, WG};
+use super::layout::{Params, Pixel, Texel};
+use super::plan::SHARE_BYTES;
+use super::submission::Submission;
 use super::{GpuRenderer, Pass};
 use crate::error::Result;
 use crate::material::N_PARAMS;
 use crate::prepare::Prepared;
 use crate::scene::{Gradients, Image};
-
-/// Bytes of one texel's shares of dLoss/dctrl.
-const SHARE_BYTES: u64 = (N_PARAMS * 4) as u64;
 
 /// Readback slots of one scene's gradients.
 struct Slots {
@@ -21,82 +18,107 @@ struct Slots {
     d_normals: Vec<usize>,
 }
 
-/// Encodes the per-texel gather over the pixels with a non-zero upstream gradient, and the
-/// reduction of the shares into dLoss/dctrl, texel range by texel range.
+/// Encodes the per-texel gather over the pixels with a non-zero upstream gradient (in the
+/// planner's ranges and slices), the sums over slices, and the reduction of the shares into
+/// dLoss/dctrl, texel range by texel range.
 fn encode_texel(
     r: &GpuRenderer,
     prep: &Prepared,
     pixels: &[Pixel],
-    enc: &mut wgpu::CommandEncoder,
-    readback: &mut Readback,
+    sub: &mut Submission<'_>,
 ) -> (Vec<usize>, usize) {
     let device = &r.ctx.device;
-    let gather = r.pipeline(Pass::BackwardTexel);
-    let reduce = r.pipeline(Pass::ReduceCtrl);
     let active: Vec<Pixel> = pixels
         .iter()
         .filter(|p| p.g[..3].iter().any(|&v| v != 0.0))
         .copied()
         .collect();
-    let (pix, chunk_sizes) = uniform_chunks(device, "pixel chunks", &active, PIXEL_CHUNK);
-    let d_ctrl = output(device, "d_ctrl", SHARE_BYTES);
     let texels: Vec<Texel> = prep
         .texels
         .iter()
         .map(|t| Texel::new(t, &prep.active_lobes))
         .collect();
-    let range = r.max_records(SHARE_BYTES);
+    let shape = r
+        .planner
+        .gather(Pass::BackwardTexel, texels.len(), active.len());
+    let inner = shape.inner_ranges();
+    let pix: Vec<wgpu::Buffer> = inner
+        .iter()
+        .map(|q| tiled(r, "pixels", &active[q.clone()]))
+        .collect();
+    let d_ctrl = output(device, "d_ctrl", SHARE_BYTES);
     let base = Params::for_scene(prep);
     let mut d_env_slots = Vec::new();
-    for (ri, part) in texels.chunks(range).enumerate() {
-        let nt = part.len() as u32;
+    for (ri, o) in shape.outer_ranges().into_iter().enumerate() {
+        let part = &texels[o];
+        let nt = part.len();
         let mut table = ParamsTable::default();
-        let offsets = table.push_chunks(base, &chunk_sizes, |np| (np, nt));
+        let offsets: Vec<u32> = inner
+            .iter()
+            .enumerate()
+            .map(|(k, q)| {
+                table.push(Params {
+                    n_pixels: q.len() as u32,
+                    n_texels: nt as u32,
+                    first: (k == 0) as u32,
+                    slice_len: shape.slice_len,
+                    n_slices: shape.slices,
+                    ..base
+                })
+            })
+            .collect();
         let reduce_offset = table.push(Params {
             n_pixels: 0,
-            n_texels: nt,
+            n_texels: nt as u32,
             first: (ri == 0) as u32,
             ..base
         });
         let params = table.upload(device, "params");
         let tex = storage(device, "texels", part);
-        let env_bytes = part.len() as u64 * 16;
-        let d_env = output(device, "d_env", env_bytes);
-        let d_share = output(device, "d_share", part.len() as u64 * SHARE_BYTES);
-        let bg = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("backward_texel"),
-            layout: &gather.layout,
-            entries: &[
-                window(0, &params, size_of::<Params>() as u64),
-                window(1, &pix, CHUNK_BYTES),
-                whole(2, &tex),
-                whole(3, &d_env),
-                whole(4, &d_share),
-            ],
-        });
-        let reduce_bg = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("reduce_ctrl"),
-            layout: &reduce.layout,
-            entries: &[
-                window(0, &params, size_of::<Params>() as u64),
-                whole(1, &d_share),
-                whole(2, &d_ctrl),
-            ],
-        });
-        {
-            let mut cp = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("backward_texel"),
-                timestamp_writes: None,
-            });
-            cp.set_pipeline(&gather.pipeline);
-            dispatch_chunks(&mut cp, &bg, &offsets, nt.div_ceil(WG as u32));
-            cp.set_pipeline(&reduce.pipeline);
-            cp.set_bind_group(0, &reduce_bg, &[reduce_offset]);
-            cp.dispatch_workgroups(N_PARAMS as u32, 1, 1);
-        }
-        d_env_slots.push(readback.copy(device, enc, &d_env, env_bytes));
+        let env_bytes = nt as u64 * 16;
+        let slices = shape.slices as u64;
+        let d_env = output(device, "d_env", env_bytes * slices);
+        let d_share = output(device, "d_share", nt as u64 * SHARE_BYTES * slices);
+        let groups: Vec<wgpu::BindGroup> = pix
+            .iter()
+            .map(|p| {
+                bind(
+                    r,
+                    Pass::BackwardTexel,
+                    &params,
+                    &[p, &tex, &d_env, &d_share],
+                )
+            })
+            .collect();
+        let dispatches: Vec<_> = groups
+            .iter()
+            .zip(&offsets)
+            .map(|(bg, &off)| (bg, off, shape.groups(nt)))
+            .collect();
+        sub.compute(
+            Pass::BackwardTexel,
+            nt as u64 * active.len() as u64,
+            &dispatches,
+        );
+        let (env, share) = if shape.slices > 1 {
+            (
+                reduce_slices(r, sub, base, &d_env, nt, shape.slices),
+                reduce_slices(r, sub, base, &d_share, nt * N_PARAMS / 4, shape.slices),
+            )
+        } else {
+            (d_env, d_share)
+        };
+        let reduce_bg = bind(r, Pass::ReduceCtrl, &params, &[&share, &d_ctrl]);
+        sub.compute(
+            Pass::ReduceCtrl,
+            0,
+            &[(&reduce_bg, reduce_offset, [N_PARAMS as u32, 1, 1])],
+        );
+        d_env_slots.push(sub.readback.copy(device, &mut sub.enc, &env, env_bytes));
     }
-    let ctrl_slot = readback.copy(device, enc, &d_ctrl, SHARE_BYTES);
+    let ctrl_slot = sub
+        .readback
+        .copy(device, &mut sub.enc, &d_ctrl, SHARE_BYTES);
     (d_env_slots, ctrl_slot)
 }
 
@@ -106,11 +128,7 @@ pub(super) fn backward(
     preps: &[Prepared],
     upstream: &[Image],
 ) -> Result<Vec<Gradients>> {
-    let device = &r.ctx.device;
-    let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
-        label: Some("backward"),
-    });
-    let mut readback = Readback::default();
+    let mut sub = Submission::new(r, "backward");
     let slots: Vec<Slots> = preps
         .iter()
         .zip(upstream)
@@ -120,15 +138,8 @@ pub(super) fn backward(
                 .iter()
                 .map(|p| Pixel::new(p, g.pixels[p.index]))
                 .collect();
-            let (d_env, d_ctrl) = encode_texel(r, prep, &pixels, &mut enc, &mut readback);
-            let d_normals = encode_per_pixel(
-                r,
-                Pass::BackwardNormal,
-                prep,
-                &pixels,
-                &mut enc,
-                &mut readback,
-            );
+            let (d_env, d_ctrl) = encode_texel(r, prep, &pixels, &mut sub);
+            let d_normals = encode_per_pixel(r, Pass::BackwardNormal, prep, &pixels, &mut sub);
             Slots {
                 d_env,
                 d_ctrl,
@@ -136,8 +147,8 @@ pub(super) fn backward(
             }
         })
         .collect();
-    r.ctx.queue.submit([enc.finish()]);
-    let data = readback.finish(device)?;
+    let (data, run) = sub.finish()?;
+    r.record(run);
     Ok(preps
         .iter()
         .zip(slots)

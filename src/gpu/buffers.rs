@@ -1,9 +1,12 @@
-//! Buffer helpers: uploads, uniform chunk tables, per-dispatch params, and the one place
-//! that reads results back (staging buffer, map_async, poll).
+//! Buffer helpers: uploads, per-dispatch params, and the one place that reads results back
+//! (staging buffer, map_async, poll).
 
 use wgpu::util::DeviceExt;
 
 use super::layout::{CHUNK_BYTES, PARAMS_STRIDE, Params};
+use super::pipelines::Tiles;
+use super::submission::Submission;
+use super::{GpuRenderer, Pass};
 use crate::error::{Error, Result};
 
 /// Smallest buffer made: bindings cannot be empty.
@@ -46,17 +49,26 @@ pub fn storage<T: bytemuck::Pod>(
     )
 }
 
-/// Dispatches `groups` workgroups once per uniform chunk: params entry `offsets[c]` with
-/// chunk `c` of the chunk buffer bound at binding 1.
-pub fn dispatch_chunks(
-    cp: &mut wgpu::ComputePass<'_>,
-    bg: &wgpu::BindGroup,
-    offsets: &[u32],
-    groups: u32,
-) {
-    for (c, &off) in offsets.iter().enumerate() {
-        cp.set_bind_group(0, bg, &[off, c as u32 * CHUNK_BYTES as u32]);
-        cp.dispatch_workgroups(groups, 1, 1);
+/// The looped-over records of one inner range of a gather pass, as it reads them: a
+/// storage buffer ([`Tiles::Workgroup`]) or one uniform chunk, padded ([`Tiles::Uniform`]).
+pub fn tiled<T: bytemuck::Pod + Default>(
+    r: &GpuRenderer,
+    label: &str,
+    records: &[T],
+) -> wgpu::Buffer {
+    let device = &r.ctx.device;
+    match r.planner.tiles {
+        Tiles::Workgroup => storage(device, label, records),
+        Tiles::Uniform => {
+            let mut padded = records.to_vec();
+            padded.resize(CHUNK_BYTES as usize / size_of::<T>(), T::default());
+            upload(
+                device,
+                label,
+                bytemuck::cast_slice(&padded),
+                wgpu::BufferUsages::UNIFORM,
+            )
+        }
     }
 }
 
@@ -68,33 +80,6 @@ pub fn output(device: &wgpu::Device, label: &str, bytes: u64) -> wgpu::Buffer {
         usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
         mapped_at_creation: false,
     })
-}
-
-/// Records padded to whole uniform chunks of [`CHUNK_BYTES`]: returns the buffer and the
-/// number of records in each chunk (one empty chunk for no records).
-pub fn uniform_chunks<T: bytemuck::Pod + Default>(
-    device: &wgpu::Device,
-    label: &str,
-    records: &[T],
-    per_chunk: usize,
-) -> (wgpu::Buffer, Vec<u32>) {
-    let chunks = records.len().div_ceil(per_chunk).max(1);
-    let mut padded = records.to_vec();
-    padded.resize(chunks * per_chunk, T::default());
-    let bytes: &[u8] = bytemuck::cast_slice(&padded);
-    debug_assert_eq!(bytes.len() as u64, chunks as u64 * CHUNK_BYTES);
-    // no records (an all-black map, a map whose texels all have zero solid angle, an
-    // upstream gradient of zeros) is one empty chunk: the passes then write their zero
-    // sums, instead of binding an empty table of dispatches (a validation error)
-    let sizes = if records.is_empty() {
-        vec![0]
-    } else {
-        records.chunks(per_chunk).map(|c| c.len() as u32).collect()
-    };
-    (
-        upload(device, label, bytes, wgpu::BufferUsages::UNIFORM),
-        sizes,
-    )
 }
 
 /// Per-dispatch [`Params`], [`PARAMS_STRIDE`] bytes apart, bound with a dynamic offset.
@@ -110,29 +95,6 @@ impl ParamsTable {
         self.bytes.extend_from_slice(bytemuck::bytes_of(&p));
         self.bytes.resize(offset + PARAMS_STRIDE as usize, 0);
         offset as u32
-    }
-
-    /// One entry per uniform chunk of `sizes`, `first` set on chunk 0 (the start of each
-    /// sum), built by `entry(chunk size)` from `base`; returns their dynamic offsets.
-    pub fn push_chunks(
-        &mut self,
-        base: Params,
-        sizes: &[u32],
-        entry: impl Fn(u32) -> (u32, u32),
-    ) -> Vec<u32> {
-        sizes
-            .iter()
-            .enumerate()
-            .map(|(c, &size)| {
-                let (n_pixels, n_texels) = entry(size);
-                self.push(Params {
-                    n_pixels,
-                    n_texels,
-                    first: (c == 0) as u32,
-                    ..base
-                })
-            })
-            .collect()
     }
 
     /// The uniform buffer.
@@ -219,4 +181,54 @@ impl Readback {
         }
         Ok(out)
     }
+}
+
+/// A bind group of `pass`'s layout: `params` at binding 0 (one [`Params`] at a dynamic
+/// offset), then the whole of each of `buffers` in order.
+pub fn bind(
+    r: &GpuRenderer,
+    pass: Pass,
+    params: &wgpu::Buffer,
+    buffers: &[&wgpu::Buffer],
+) -> wgpu::BindGroup {
+    let mut entries = vec![window(0, params, size_of::<Params>() as u64)];
+    entries.extend(
+        buffers
+            .iter()
+            .enumerate()
+            .map(|(k, b)| whole(k as u32 + 1, b)),
+    );
+    r.ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some(pass.name()),
+        layout: &r.pipeline(pass).layout,
+        entries: &entries,
+    })
+}
+
+/// Encodes reduce_slices over `parts` (`slices` slices of `elements` vec4 elements each);
+/// returns the buffer of the sums.
+pub fn reduce_slices(
+    r: &GpuRenderer,
+    sub: &mut Submission<'_>,
+    base: Params,
+    parts: &wgpu::Buffer,
+    elements: usize,
+    slices: u32,
+) -> wgpu::Buffer {
+    let device = &r.ctx.device;
+    let mut table = ParamsTable::default();
+    let offset = table.push(Params {
+        n_pixels: elements as u32,
+        n_slices: slices,
+        ..base
+    });
+    let params = table.upload(device, "reduce_slices params");
+    let total = output(device, "slice sums", elements as u64 * 16);
+    let bg = bind(r, Pass::ReduceSlices, &params, &[parts, &total]);
+    sub.compute(
+        Pass::ReduceSlices,
+        0,
+        &[(&bg, offset, r.planner.reduce_groups(elements))],
+    );
+    total
 }

@@ -1,66 +1,75 @@
-//! Host side of shaders/forward.wgsl.
+//! Host side of shaders/forward.wgsl, and the encoding it shares with backward_normal.
 
-use super::buffers::{
-    ParamsTable, Readback, dispatch_chunks, output, storage, uniform_chunks, whole, window,
-};
-use super::layout::{CHUNK_BYTES, Params, Pixel, TEXEL_CHUNK, Texel, WG};
+use super::buffers::{ParamsTable, bind, output, reduce_slices, storage, tiled};
+use super::layout::{Params, Pixel, Texel};
+use super::submission::Submission;
 use super::{GpuRenderer, Pass};
 use crate::error::Result;
 use crate::prepare::Prepared;
 use crate::scene::Image;
 
-/// The lit texels of a scene in uniform chunks: the buffer and the chunk sizes.
-pub(super) fn lit_chunks(r: &GpuRenderer, prep: &Prepared) -> (wgpu::Buffer, Vec<u32>) {
-    let lit: Vec<Texel> = prep
-        .lit
-        .iter()
-        .map(|&i| Texel::new(&prep.texels[i], &prep.active_lobes))
-        .collect();
-    uniform_chunks(&r.ctx.device, "lit texels", &lit, TEXEL_CHUNK)
-}
-
 /// Encodes a per-pixel pass (forward or backward_normal) over `pixels` against the lit
-/// texel chunks; returns the readback slot of each pixel range, in order.
+/// texels, in the planner's ranges and slices, the slices then added by reduce_slices;
+/// returns the readback slot of each pixel range, in order.
 pub(super) fn encode_per_pixel(
     r: &GpuRenderer,
     pass: Pass,
     prep: &Prepared,
     pixels: &[Pixel],
-    enc: &mut wgpu::CommandEncoder,
-    readback: &mut Readback,
+    sub: &mut Submission<'_>,
 ) -> Vec<usize> {
     let device = &r.ctx.device;
-    let pipe = r.pipeline(pass);
-    let (texels, chunk_sizes) = lit_chunks(r, prep);
-    let range = r.max_records(size_of::<Pixel>() as u64);
+    let lit: Vec<Texel> = prep
+        .lit
+        .iter()
+        .map(|&i| Texel::new(&prep.texels[i], &prep.active_lobes))
+        .collect();
+    let shape = r.planner.gather(pass, pixels.len(), lit.len());
+    let inner = shape.inner_ranges();
+    let texels: Vec<wgpu::Buffer> = inner
+        .iter()
+        .map(|t| tiled(r, "lit texels", &lit[t.clone()]))
+        .collect();
+    let base = Params::for_scene(prep);
     let mut slots = Vec::new();
-    for part in pixels.chunks(range.max(1)) {
-        let n = part.len() as u32;
+    for o in shape.outer_ranges() {
+        let part = &pixels[o];
+        let n = part.len();
         let mut table = ParamsTable::default();
-        let offsets = table.push_chunks(Params::for_scene(prep), &chunk_sizes, |nt| (n, nt));
+        let offsets: Vec<u32> = inner
+            .iter()
+            .enumerate()
+            .map(|(k, t)| {
+                table.push(Params {
+                    n_pixels: n as u32,
+                    n_texels: t.len() as u32,
+                    first: (k == 0) as u32,
+                    slice_len: shape.slice_len,
+                    n_slices: shape.slices,
+                    ..base
+                })
+            })
+            .collect();
         let params = table.upload(device, "params");
         let pix = storage(device, "pixels", part);
-        let out_bytes = part.len() as u64 * 16;
-        let out = output(device, pass.name(), out_bytes);
-        let bg = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some(pass.name()),
-            layout: &pipe.layout,
-            entries: &[
-                window(0, &params, size_of::<Params>() as u64),
-                window(1, &texels, CHUNK_BYTES),
-                whole(2, &pix),
-                whole(3, &out),
-            ],
-        });
-        {
-            let mut cp = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some(pass.name()),
-                timestamp_writes: None,
-            });
-            cp.set_pipeline(&pipe.pipeline);
-            dispatch_chunks(&mut cp, &bg, &offsets, n.div_ceil(WG as u32));
-        }
-        slots.push(readback.copy(device, enc, &out, out_bytes));
+        let out_bytes = n as u64 * 16;
+        let parts = output(device, pass.name(), out_bytes * shape.slices as u64);
+        let groups: Vec<wgpu::BindGroup> = texels
+            .iter()
+            .map(|tex| bind(r, pass, &params, &[tex, &pix, &parts]))
+            .collect();
+        let dispatches: Vec<_> = groups
+            .iter()
+            .zip(&offsets)
+            .map(|(bg, &off)| (bg, off, shape.groups(n)))
+            .collect();
+        sub.compute(pass, n as u64 * lit.len() as u64, &dispatches);
+        let out = if shape.slices > 1 {
+            reduce_slices(r, sub, base, &parts, n, shape.slices)
+        } else {
+            parts
+        };
+        slots.push(sub.readback.copy(device, &mut sub.enc, &out, out_bytes));
     }
     slots
 }
@@ -78,11 +87,7 @@ pub(super) fn scatter_pixels(prep: &Prepared, data: &[Vec<f32>], slots: &[usize]
 
 /// One image per prepared scene, in one submission.
 pub(super) fn forward(r: &GpuRenderer, preps: &[Prepared]) -> Result<Vec<Image>> {
-    let device = &r.ctx.device;
-    let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
-        label: Some("forward"),
-    });
-    let mut readback = Readback::default();
+    let mut sub = Submission::new(r, "forward");
     let slots: Vec<Vec<usize>> = preps
         .iter()
         .map(|prep| {
@@ -91,11 +96,11 @@ pub(super) fn forward(r: &GpuRenderer, preps: &[Prepared]) -> Result<Vec<Image>>
                 .iter()
                 .map(|p| Pixel::new(p, [0.0; 3]))
                 .collect();
-            encode_per_pixel(r, Pass::Forward, prep, &pixels, &mut enc, &mut readback)
+            encode_per_pixel(r, Pass::Forward, prep, &pixels, &mut sub)
         })
         .collect();
-    r.ctx.queue.submit([enc.finish()]);
-    let data = readback.finish(device)?;
+    let (data, run) = sub.finish()?;
+    r.record(run);
     Ok(preps
         .iter()
         .zip(slots)
