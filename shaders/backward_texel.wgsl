@@ -12,11 +12,11 @@
 // sums are named variables, not an indexed private array: that is slow on SIMD backends
 // such as lavapipe.
 
-@group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(2) var<storage, read> texels: array<Texel>;
-// [slice * n_texels + texel]
+// [slice * slice_stride + texel_base + texel]
 @group(0) @binding(3) var<storage, read_write> d_env: array<vec4<f32>>;
-// 108 per slice and texel, [slice * n_texels + texel], in the material's flat order
+// 108 per slice and texel, [slice * slice_stride + texel_base + texel], in the material's
+// flat order
 @group(0) @binding(4) var<storage, read_write> d_share: array<f32>;
 
 // The pixels with a non-zero upstream gradient, read through `tile` (tile_workgroup.wgsl
@@ -26,7 +26,7 @@ alias Tiled = Pixel;
 const CHUNK: u32 = 1344u;
 
 // Writes (first range) or adds the share of channel k, coefficient t, control point j of
-// record o (slice * n_texels + texel), given over the three lobes.
+// record o (slice * slice_stride + texel_base + texel), given over the three lobes.
 fn put_share(o: u32, k: u32, t: u32, j: u32, v: vec3<f32>, first: bool) {
     let at = o * 108u + (k * 6u + t) * 6u + j;
     if first {
@@ -44,9 +44,11 @@ fn put_share(o: u32, k: u32, t: u32, j: u32, v: vec3<f32>, first: bool) {
 fn backward_texel(@builtin(global_invocation_id) gid: vec3<u32>,
                   @builtin(workgroup_id) wg: vec3<u32>,
                   @builtin(local_invocation_index) li: u32) {
-    let live = gid.x < params.n_texels;
+    let z = wg.z;
+    let n_texels = scenes[z].n_texels;
+    let live = gid.x < n_texels;
     // lanes past the end read the last texel and add nothing: they still load tiles
-    let i = min(gid.x, params.n_texels - 1u);
+    let i = scenes[z].texel_base + min(gid.x, max(n_texels, 1u) - 1u);
     let w = texels[i].w.xyz;
     var acc_l = vec3<f32>(0.0);
     // a_KT_J: channel K, coefficient T (0 scale, 1 exponent), control point J; over lobes
@@ -100,12 +102,12 @@ fn backward_texel(@builtin(global_invocation_id) gid: vec3<u32>,
     var d1g = vec3<f32>(0.0);
     var d0b = vec3<f32>(0.0);
     var d1b = vec3<f32>(0.0);
-    let start = wg.y * params.slice_len;
-    let end = min(start + params.slice_len, params.n_pixels);
+    let start = scenes[z].pixel_base + wg.y * scenes[z].slice_len;
+    let end = min(start + scenes[z].slice_len, scenes[z].pixel_base + scenes[z].n_pixels);
     for (var p0 = start; p0 < end; p0 += TILE) {
         let base = load_tile(p0, end, li);
         let m = select(0u, min(TILE, end - p0), live);
-        if params.perspective == 0u {
+        if scenes[z].perspective == 0u {
             for (var p = 0u; p < m; p++) {
                 let n = tile[base + p].n;
                 let c = dot(n, w);
@@ -140,9 +142,9 @@ fn backward_texel(@builtin(global_invocation_id) gid: vec3<u32>,
                 let x = xl.x;
                 let lnx = xl.y;
                 let gc = tile[base + p].g.xyz * c;
-                let lr = lobe_grads(x, lnx, pair_coef(b, 0u), pair_coef(b, 6u));
-                let lg = lobe_grads(x, lnx, pair_coef(b, 12u), pair_coef(b, 18u));
-                let lb = lobe_grads(x, lnx, pair_coef(b, 24u), pair_coef(b, 30u));
+                let lr = lobe_grads(x, lnx, pair_coef(b, 0u, z), pair_coef(b, 6u, z));
+                let lg = lobe_grads(x, lnx, pair_coef(b, 12u, z), pair_coef(b, 18u, z));
+                let lb = lobe_grads(x, lnx, pair_coef(b, 24u, z), pair_coef(b, 30u, z));
                 acc_l += gc * vec3<f32>(lr.f, lg.f, lb.f);
                 let wr0 = gc.x * lr.d0;
                 let wr1 = gc.x * lr.d1;
@@ -192,7 +194,7 @@ fn backward_texel(@builtin(global_invocation_id) gid: vec3<u32>,
     if !live {
         return;
     }
-    if params.perspective == 0u {
+    if scenes[z].perspective == 0u {
         let tb = spline_basis(texels[i].h.w);
         a_r0_0 = d0r * tb[0];
         a_r0_1 = d0r * tb[1];
@@ -233,8 +235,8 @@ fn backward_texel(@builtin(global_invocation_id) gid: vec3<u32>,
     }
     let ld = texels[i].ld.xyz;
     let dl = vec4<f32>(acc_l * texels[i].w.w, 0.0);
-    let first = params.first == 1u;
-    let o = wg.y * params.n_texels + gid.x;
+    let first = scenes[z].first == 1u;
+    let o = wg.y * scenes[z].slice_stride + scenes[z].texel_base + gid.x;
     if first {
         d_env[o] = dl;
     } else {

@@ -1,8 +1,11 @@
-// tile_workgroup.wgsl: where a gather pass reads its looped-over records (`Tiled`) on a
-// GPU: the workgroup loads them a tile of WG at a time from a storage buffer into
-// workgroup memory, once, and every invocation of the workgroup reads the tile.
+// tile_workgroup.wgsl: where a gather pass reads its parameters and its looped-over records
+// (`Tiled`) on a GPU: a batch's scenes in one dispatch (one Params each, z = the scene), and
+// the records loaded a tile of WG at a time from a storage buffer into workgroup memory,
+// once, for every invocation of the workgroup to read.
 // Appended to forward, backward_normal and backward_texel (see `Pass::source`).
 
+// One Params per scene of the dispatch (z = the scene), from a dynamic offset.
+@group(0) @binding(0) var<storage, read> scenes: array<Params>;
 @group(0) @binding(1) var<storage, read> tiled: array<Tiled>;
 
 var<workgroup> tile: array<Tiled, WG>;

@@ -366,6 +366,69 @@ fn batches_of_1_and_5_with_slices() {
 }
 
 #[test]
+fn a_batch_is_one_dispatch_per_pass_with_each_scenes_own_sums() {
+    // on workgroup tiles a batch's scenes go in z: one dispatch of each gather pass, and
+    // each scene's outputs bit for bit what it gets alone with the same slice count (its
+    // slices are as long; a scene with fewer leaves its last slices zero)
+    let five: Vec<Scene> = (0..5)
+        .map(|k| {
+            let mut s = sphere_scene(23 + k as u64, 16);
+            // foreground pixels differ: scene k loses its first 40 k pixels
+            for n in s.normals.normals.iter_mut().take(40 * k) {
+                *n = [0.0; 3];
+            }
+            s
+        })
+        .collect();
+    let batch = Batch::new(five.clone()).unwrap();
+    let test = "a_batch_is_one_dispatch_per_pass_with_each_scenes_own_sums";
+    for s in [1, 3] {
+        let Some(g) = sliced(test, Tiles::Workgroup, s) else {
+            return;
+        };
+        let whole = output_bits(&g, &batch);
+        let zs = |pass| {
+            g.last_dispatches()
+                .iter()
+                .filter(|d| d.pass == pass)
+                .map(|d| d.workgroups[2])
+                .collect::<Vec<u32>>()
+        };
+        assert_eq!(zs(matedit::gpu::Pass::BackwardTexel), [5], "{s} slices");
+        assert_eq!(zs(matedit::gpu::Pass::BackwardNormal), [5], "{s} slices");
+        assert_eq!(zs(matedit::gpu::Pass::ReduceCtrl), [5], "{s} slices");
+        g.render(&batch).unwrap();
+        assert_eq!(zs(matedit::gpu::Pass::Forward), [5], "{s} slices");
+        // output_bits orders images, then gradients, scene by scene
+        let up = upstream_for(&batch, 5);
+        let mut alone: (Vec<u32>, Vec<u32>) = Default::default();
+        for (b, scene) in five.iter().enumerate() {
+            let one = Batch::single(scene.clone()).unwrap();
+            let img = g.render(&one).unwrap();
+            let grad = g.backward(&one, std::slice::from_ref(&up[b])).unwrap();
+            alone
+                .0
+                .extend(img[0].pixels.iter().flatten().map(|x| x.to_bits()));
+            alone.1.extend(
+                grad[0]
+                    .d_env
+                    .iter()
+                    .flatten()
+                    .chain(grad[0].d_normals.iter().flatten())
+                    .chain(grad[0].d_ctrl.iter())
+                    .map(|x| x.to_bits()),
+            );
+        }
+        let alone: Vec<u32> = alone.0.into_iter().chain(alone.1).collect();
+        let first = whole.iter().zip(&alone).position(|(a, b)| a != b);
+        assert!(
+            whole.len() == alone.len() && first.is_none(),
+            "{s} slices: the batch differs from its scenes alone, first at {first:?}"
+        );
+    }
+}
+
+#[test]
 fn slices_under_forced_caps() {
     // bindings of 64 pixels (per-pixel partial sums: at most 3 slices; shares: 1 slice)
     // and of 2 workgroups of shares (2 texel slices); 2 and 3 workgroups per dimension

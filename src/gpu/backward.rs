@@ -1,7 +1,7 @@
 //! Host side of shaders/backward_texel.wgsl, reduce_ctrl.wgsl and backward_normal.wgsl.
 
-use super::buffers::{ParamsTable, bind, output, reduce_slices, storage, tiled};
-use super::forward::{encode_per_pixel, scatter_pixels};
+use super::buffers::{ParamsTable, bind, bind_scenes, output, reduce_slices, storage, tiled};
+use super::forward::{bases, batch_params, encode_per_pixel, scatter_pixels};
 use super::layout::{Params, Pixel, Texel};
 use super::plan::SHARE_BYTES;
 use super::submission::Submission;
@@ -18,26 +18,120 @@ struct Slots {
     d_normals: Vec<usize>,
 }
 
-/// Encodes the per-texel gather over the pixels with a non-zero upstream gradient (in the
-/// planner's ranges and slices), the sums over slices, and the reduction of the shares into
-/// dLoss/dctrl, texel range by texel range.
+/// The GPU records of a scene's texels.
+fn texel_records(prep: &Prepared) -> Vec<Texel> {
+    prep.texels
+        .iter()
+        .map(|t| Texel::new(t, &prep.active_lobes))
+        .collect()
+}
+
+/// Encodes the per-texel gather over the pixels of each scene with a non-zero upstream
+/// gradient, the sums over slices, and the reduction of the shares into dLoss/dctrl: the
+/// whole batch in one dispatch of each where the planner allows, else scene by scene.
+/// Returns per scene the readback slots of d_env (one per texel range) and of d_ctrl.
 fn encode_texel(
     r: &GpuRenderer,
+    preps: &[Prepared],
+    pixels: &[Vec<Pixel>],
+    sub: &mut Submission<'_>,
+) -> Vec<(Vec<usize>, usize)> {
+    let device = &r.ctx.device;
+    let active: Vec<Vec<Pixel>> = pixels
+        .iter()
+        .map(|px| {
+            px.iter()
+                .filter(|p| p.g[..3].iter().any(|&v| v != 0.0))
+                .copied()
+                .collect()
+        })
+        .collect();
+    let nt: Vec<usize> = preps.iter().map(|p| p.texels.len()).collect();
+    let na: Vec<usize> = active.iter().map(Vec::len).collect();
+    let Some(shape) = r.planner.batch(Pass::BackwardTexel, &nt, &na) else {
+        return preps
+            .iter()
+            .zip(&active)
+            .map(|(prep, a)| encode_texel_scene(r, prep, a, sub))
+            .collect();
+    };
+    let b = preps.len();
+    let texel_base = bases(&nt);
+    let total = shape.outer;
+    let scenes = batch_params(preps, &shape, &na, &nt, &na);
+    let mut table = ParamsTable::default();
+    let offset = table.push_scenes(&scenes);
+    // a batch's maps have one size: the shares of scene z start at z * nt
+    let reduce_offset = table.push(Params {
+        n_texels: nt[0] as u32,
+        first: 1,
+        ..scenes[0]
+    });
+    let params = table.upload(device, "params");
+    let records: Vec<Texel> = preps.iter().flat_map(texel_records).collect();
+    let tex = storage(device, "texels", &records);
+    let pix = storage(device, "pixels", &active.concat());
+    let slices = shape.slices as u64;
+    let d_env = output(device, "d_env", total as u64 * 16 * slices);
+    let d_share = output(device, "d_share", total as u64 * SHARE_BYTES * slices);
+    let d_ctrl = output(device, "d_ctrl", b as u64 * SHARE_BYTES);
+    let bg = bind_scenes(
+        r,
+        Pass::BackwardTexel,
+        &params,
+        b,
+        &[&pix, &tex, &d_env, &d_share],
+    );
+    let [x, y, _] = shape.groups(nt.iter().copied().max().unwrap_or(0));
+    let pairs = nt.iter().zip(&na).map(|(&t, &a)| (t * a) as u64).sum();
+    sub.compute(
+        Pass::BackwardTexel,
+        pairs,
+        &[(&bg, offset, [x, y, b as u32])],
+    );
+    let (env, share) = if shape.slices > 1 {
+        (
+            reduce_slices(r, sub, scenes[0], &d_env, total, shape.slices),
+            reduce_slices(
+                r,
+                sub,
+                scenes[0],
+                &d_share,
+                total * N_PARAMS / 4,
+                shape.slices,
+            ),
+        )
+    } else {
+        (d_env, d_share)
+    };
+    let reduce_bg = bind(r, Pass::ReduceCtrl, &params, &[&share, &d_ctrl]);
+    sub.compute(
+        Pass::ReduceCtrl,
+        0,
+        &[(&reduce_bg, reduce_offset, [N_PARAMS as u32, 1, b as u32])],
+    );
+    (0..b)
+        .map(|z| {
+            let (at, bytes) = (texel_base[z] as u64 * 16, nt[z] as u64 * 16);
+            let env_slot = sub.readback.copy_at(device, &mut sub.enc, &env, at, bytes);
+            let at = z as u64 * SHARE_BYTES;
+            let ctrl_slot = sub
+                .readback
+                .copy_at(device, &mut sub.enc, &d_ctrl, at, SHARE_BYTES);
+            (vec![env_slot], ctrl_slot)
+        })
+        .collect()
+}
+
+/// [`encode_texel`] for one scene, texel range by texel range.
+fn encode_texel_scene(
+    r: &GpuRenderer,
     prep: &Prepared,
-    pixels: &[Pixel],
+    active: &[Pixel],
     sub: &mut Submission<'_>,
 ) -> (Vec<usize>, usize) {
     let device = &r.ctx.device;
-    let active: Vec<Pixel> = pixels
-        .iter()
-        .filter(|p| p.g[..3].iter().any(|&v| v != 0.0))
-        .copied()
-        .collect();
-    let texels: Vec<Texel> = prep
-        .texels
-        .iter()
-        .map(|t| Texel::new(t, &prep.active_lobes))
-        .collect();
+    let texels = texel_records(prep);
     let shape = r
         .planner
         .gather(Pass::BackwardTexel, texels.len(), active.len());
@@ -63,6 +157,7 @@ fn encode_texel(
                     first: (k == 0) as u32,
                     slice_len: shape.slice_len,
                     n_slices: shape.slices,
+                    slice_stride: nt as u32,
                     ..base
                 })
             })
@@ -129,22 +224,25 @@ pub(super) fn backward(
     upstream: &[Image],
 ) -> Result<Vec<Gradients>> {
     let mut sub = Submission::new(r, "backward");
-    let slots: Vec<Slots> = preps
+    let pixels: Vec<Vec<Pixel>> = preps
         .iter()
         .zip(upstream)
         .map(|(prep, g)| {
-            let pixels: Vec<Pixel> = prep
-                .pixels
+            prep.pixels
                 .iter()
                 .map(|p| Pixel::new(p, g.pixels[p.index]))
-                .collect();
-            let (d_env, d_ctrl) = encode_texel(r, prep, &pixels, &mut sub);
-            let d_normals = encode_per_pixel(r, Pass::BackwardNormal, prep, &pixels, &mut sub);
-            Slots {
-                d_env,
-                d_ctrl,
-                d_normals,
-            }
+                .collect()
+        })
+        .collect();
+    let texel = encode_texel(r, preps, &pixels, &mut sub);
+    let normal = encode_per_pixel(r, Pass::BackwardNormal, preps, &pixels, &mut sub);
+    let slots: Vec<Slots> = texel
+        .into_iter()
+        .zip(normal)
+        .map(|((d_env, d_ctrl), d_normals)| Slots {
+            d_env,
+            d_ctrl,
+            d_normals,
         })
         .collect();
     let (data, run) = sub.finish()?;

@@ -91,15 +91,27 @@ pub struct ParamsTable {
 impl ParamsTable {
     /// Appends `p`; returns its dynamic offset.
     pub fn push(&mut self, p: Params) -> u32 {
+        self.push_scenes(&[p])
+    }
+
+    /// Appends `scenes` as one array (a batched dispatch's, one per scene); returns its
+    /// dynamic offset.
+    pub fn push_scenes(&mut self, scenes: &[Params]) -> u32 {
         let offset = self.bytes.len();
-        self.bytes.extend_from_slice(bytemuck::bytes_of(&p));
-        self.bytes.resize(offset + PARAMS_STRIDE as usize, 0);
+        self.bytes.extend_from_slice(bytemuck::cast_slice(scenes));
+        let end = self.bytes.len().next_multiple_of(PARAMS_STRIDE as usize);
+        self.bytes.resize(end, 0);
         offset as u32
     }
 
-    /// The uniform buffer.
+    /// The buffer (uniform, or storage for the batched gather passes).
     pub fn upload(&self, device: &wgpu::Device, label: &str) -> wgpu::Buffer {
-        upload(device, label, &self.bytes, wgpu::BufferUsages::UNIFORM)
+        upload(
+            device,
+            label,
+            &self.bytes,
+            wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::STORAGE,
+        )
     }
 }
 
@@ -138,6 +150,19 @@ impl Readback {
         src: &wgpu::Buffer,
         bytes: u64,
     ) -> usize {
+        self.copy_at(device, enc, src, 0, bytes)
+    }
+
+    /// Copies `bytes` of `src` from byte `offset` (a multiple of 4) to a new staging
+    /// buffer; returns its slot.
+    pub fn copy_at(
+        &mut self,
+        device: &wgpu::Device,
+        enc: &mut wgpu::CommandEncoder,
+        src: &wgpu::Buffer,
+        offset: u64,
+        bytes: u64,
+    ) -> usize {
         let size = bytes
             .max(MIN_BYTES)
             .next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT);
@@ -147,7 +172,12 @@ impl Readback {
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        enc.copy_buffer_to_buffer(src, 0, &staging, 0, size);
+        // the padding past a short source's end is not copied (nothing at all for a scene
+        // of no records at the end of a batch)
+        let size = size.min(src.size().saturating_sub(offset));
+        if size > 0 {
+            enc.copy_buffer_to_buffer(src, offset, &staging, 0, size);
+        }
         self.staging.push((staging, bytes));
         self.staging.len() - 1
     }
@@ -191,7 +221,18 @@ pub fn bind(
     params: &wgpu::Buffer,
     buffers: &[&wgpu::Buffer],
 ) -> wgpu::BindGroup {
-    let mut entries = vec![window(0, params, size_of::<Params>() as u64)];
+    bind_scenes(r, pass, params, 1, buffers)
+}
+
+/// [`bind`] with `scenes` [`Params`] at binding 0 (a batched dispatch's).
+pub fn bind_scenes(
+    r: &GpuRenderer,
+    pass: Pass,
+    params: &wgpu::Buffer,
+    scenes: usize,
+    buffers: &[&wgpu::Buffer],
+) -> wgpu::BindGroup {
+    let mut entries = vec![window(0, params, (scenes * size_of::<Params>()) as u64)];
     entries.extend(
         buffers
             .iter()

@@ -20,7 +20,8 @@ pub const CHUNK_BYTES: u64 = (TEXEL_CHUNK * size_of::<Texel>()) as u64;
 const _: () = assert!(CHUNK_BYTES == (PIXEL_CHUNK * size_of::<Pixel>()) as u64);
 const _: () = assert!(CHUNK_BYTES <= 65536 && CHUNK_BYTES.is_multiple_of(256));
 
-/// One dispatch's parameters (`Params` in common.wgsl).
+/// One dispatch's parameters, or one scene's in a batched dispatch (`Params` in
+/// common.wgsl).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct Params {
@@ -42,6 +43,14 @@ pub struct Params {
     pub slice_len: u32,
     /// Slices (reduce_slices: how many partial sums each element has).
     pub n_slices: u32,
+    /// The scene's first pixel in the pixel buffers (a batch's scenes are concatenated).
+    pub pixel_base: u32,
+    /// The scene's first texel in the texel buffers.
+    pub texel_base: u32,
+    /// Elements between two slices' partial sums (every scene's outputs).
+    pub slice_stride: u32,
+    /// Padding to 16 bytes.
+    pub _pad: u32,
     /// cc[(k * 2 + t) * 6 + j] = the control points j of coefficient t of channel k's three lobes.
     pub cc: [[f32; 4]; 36],
     /// lc[(q * 2 + t) * 6 + j] = the control points j of coefficient t of the q-th lobe of
@@ -101,6 +110,10 @@ impl Params {
             n_const: 0,
             slice_len: 0,
             n_slices: 1,
+            pixel_base: 0,
+            texel_base: 0,
+            slice_stride: 0,
+            _pad: 0,
             cc,
             lc: [[0.0; 4]; 36],
         }

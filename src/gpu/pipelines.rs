@@ -65,8 +65,8 @@ impl Pass {
         )
     }
 
-    /// The pass's WGSL module as assembled: common.wgsl, the pass, then (gather passes)
-    /// the file of `tiles`.
+    /// The pass's WGSL module as assembled: common.wgsl, (gather passes) gather.wgsl, the
+    /// pass, then (gather passes) the file of `tiles`.
     pub fn source(self, tiles: Tiles) -> String {
         let own = match self {
             Pass::Forward => include_str!("../../shaders/forward.wgsl"),
@@ -80,7 +80,12 @@ impl Pass {
             Tiles::Workgroup => include_str!("../../shaders/tile_workgroup.wgsl"),
             Tiles::Uniform => include_str!("../../shaders/tile_uniform.wgsl"),
         };
-        format!("{COMMON_WGSL}\n{own}\n{tile}")
+        let gather = if self.is_gather() {
+            include_str!("../../shaders/gather.wgsl")
+        } else {
+            ""
+        };
+        format!("{COMMON_WGSL}\n{gather}\n{own}\n{tile}")
     }
 
     /// The storage bindings after `params` and (gather passes) the tiled records at
@@ -124,12 +129,14 @@ impl Pipeline {
     /// Compiles `pass` on `device`, its records read through `tiles`.
     pub fn new(device: &wgpu::Device, pass: Pass, tiles: Tiles) -> Self {
         let (ro, rw) = pass.bindings();
-        let mut entries = vec![buffer_entry(
-            0,
-            wgpu::BufferBindingType::Uniform,
-            true,
-            size_of::<Params>() as u64,
-        )];
+        // the params: on workgroup tiles an array of scenes (a batch in z) in storage
+        let params = match tiles {
+            Tiles::Workgroup if pass.is_gather() => {
+                wgpu::BufferBindingType::Storage { read_only: true }
+            }
+            _ => wgpu::BufferBindingType::Uniform,
+        };
+        let mut entries = vec![buffer_entry(0, params, true, size_of::<Params>() as u64)];
         if pass.is_gather() {
             entries.push(match tiles {
                 Tiles::Workgroup => buffer_entry(

@@ -75,6 +75,16 @@ pub struct Shape {
     pub slice_len: u32,
 }
 
+/// Bytes of an outer record in, of its largest partial result out, of an inner record,
+/// and inner records per uniform chunk, of gather pass `pass`.
+fn record_bytes(pass: Pass) -> (u64, u64, u64, usize) {
+    let (texel, pixel) = (size_of::<Texel>() as u64, size_of::<Pixel>() as u64);
+    match pass {
+        Pass::BackwardTexel => (texel, SHARE_BYTES, pixel, PIXEL_CHUNK),
+        _ => (pixel, VEC4_BYTES, texel, TEXEL_CHUNK),
+    }
+}
+
 fn ranges(n: usize, per: usize) -> Vec<Range<usize>> {
     (0..n.div_ceil(per))
         .map(|k| k * per..n.min((k + 1) * per))
@@ -95,6 +105,12 @@ impl Shape {
             r.push(0..0);
         }
         r
+    }
+
+    /// Records per slice of a scene of `n` inner records in a batched dispatch: the length
+    /// it would get alone with [`Shape::slices`] asked for.
+    pub fn slice_len_of(&self, n: usize) -> u32 {
+        n.div_ceil(self.slices as usize) as u32
     }
 
     /// Workgroups of the gather over `n` outer records.
@@ -152,47 +168,27 @@ impl Planner {
         (n / WG * WG).max(WG)
     }
 
-    /// Slices for `outer` invocations per slice over `inner` records: enough for
-    /// [`LARGE_GPU_RESIDENT`] invocations in all, at least a tile of records each; 1 on a
-    /// software adapter.
-    fn auto_slices(&self, outer: usize, inner: usize) -> usize {
+    /// Slices for `scenes` x `outer` invocations per slice over `inner` records: enough
+    /// for [`LARGE_GPU_RESIDENT`] invocations in all, at least a tile of records each; 1 on
+    /// a software adapter.
+    fn auto_slices(&self, scenes: usize, outer: usize, inner: usize) -> usize {
         if self.software {
             return 1;
         }
-        let per_slice = (outer.div_ceil(WG) * WG).max(WG) as u64;
+        let per_slice = (scenes * outer.div_ceil(WG) * WG).max(WG) as u64;
         let want = LARGE_GPU_RESIDENT.div_ceil(per_slice) as usize;
         want.min(inner.div_ceil(WG)).max(1)
     }
 
     /// The shape of gather pass `pass` over `outer` and `inner` records.
     pub fn gather(&self, pass: Pass, outer: usize, inner: usize) -> Shape {
-        // bytes of an outer record in, of its largest partial result out, of an inner record
-        // and records per uniform chunk
-        let (outer_in, out, inner_in, chunk) = match pass {
-            Pass::BackwardTexel => (
-                size_of::<Texel>(),
-                SHARE_BYTES,
-                size_of::<Pixel>(),
-                PIXEL_CHUNK,
-            ),
-            _ => (
-                size_of::<Pixel>(),
-                VEC4_BYTES,
-                size_of::<Texel>(),
-                TEXEL_CHUNK,
-            ),
-        };
+        let (outer_in, out, inner_in, chunk) = record_bytes(pass);
         let inner_range = match self.tiles {
-            Tiles::Workgroup => self.max_records(inner_in as u64),
+            Tiles::Workgroup => self.max_records(inner_in),
             Tiles::Uniform => chunk,
         };
         let n_in = inner.min(inner_range);
-        let want = self
-            .slices
-            .map_or_else(|| self.auto_slices(outer, n_in), |s| s as usize);
-        // the partial sums of one workgroup of outer records fit in one binding
-        let cap = (self.max_records(out) / WG).min(self.max_groups as usize);
-        let s = want.clamp(1, cap.max(1));
+        let s = self.slices_for(pass, 1, outer, n_in);
         let slice_len = n_in.div_ceil(s);
         // slices that would be empty are not dispatched
         let slices = if slice_len == 0 {
@@ -201,7 +197,7 @@ impl Planner {
             n_in.div_ceil(slice_len)
         };
         let outer_range = self
-            .max_records(outer_in as u64)
+            .max_records(outer_in)
             .min(self.max_records(out * slices as u64));
         Shape {
             outer,
@@ -211,6 +207,50 @@ impl Planner {
             slices: slices as u32,
             slice_len: slice_len as u32,
         }
+    }
+
+    /// Slices asked for (or the automatic count), within the caps: the partial sums of one
+    /// workgroup of outer records fit in one binding.
+    fn slices_for(&self, pass: Pass, scenes: usize, outer: usize, inner: usize) -> usize {
+        let out = record_bytes(pass).1;
+        let want = self
+            .slices
+            .map_or_else(|| self.auto_slices(scenes, outer, inner), |s| s as usize);
+        let cap = (self.max_records(out) / WG).min(self.max_groups as usize);
+        want.clamp(1, cap.max(1))
+    }
+
+    /// The shape of gather pass `pass` over a batch in one dispatch, the scenes in z:
+    /// `outer[z]` and `inner[z]` records of scene z, concatenated. `None` where the batch
+    /// goes scene by scene: one scene, uniform chunks (a software adapter), or records or
+    /// partial sums over one binding. Scene z's slices are as long as they would be were it
+    /// alone ([`Shape::slice_len_of`]); a scene with fewer leaves its last slices empty
+    /// (zeros, which its sum over slices adds exactly).
+    pub fn batch(&self, pass: Pass, outer: &[usize], inner: &[usize]) -> Option<Shape> {
+        let b = outer.len();
+        if b < 2 || self.tiles == Tiles::Uniform || b > self.max_groups as usize {
+            return None;
+        }
+        let (outer_in, out, inner_in, _) = record_bytes(pass);
+        let max_out = outer.iter().copied().max().unwrap_or(0);
+        let max_in = inner.iter().copied().max().unwrap_or(0);
+        let total_out: usize = outer.iter().sum();
+        let total_in: usize = inner.iter().sum();
+        let asked = self.slices_for(pass, b, max_out, max_in) as u32;
+        let limit = self.max_binding.min(self.max_buffer);
+        let fits = total_out as u64 * outer_in <= limit
+            && total_out as u64 * out * asked as u64 <= limit
+            && total_in as u64 * inner_in <= limit
+            && max_out.div_ceil(WG) <= self.max_groups as usize;
+        let shape = Shape {
+            outer: total_out,
+            inner: total_in,
+            outer_range: total_out,
+            inner_range: total_in,
+            slices: asked,
+            slice_len: max_in.div_ceil(asked as usize) as u32,
+        };
+        fits.then_some(shape)
     }
 
     /// Workgroups for `elements` invocations: x up to the limit, then y.
