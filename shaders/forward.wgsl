@@ -3,7 +3,7 @@
 // memory on a GPU, a uniform chunk on a software adapter), every invocation sums over the
 // tile, and writes (first range) or adds its slice's sum; reduce_slices adds the slices in
 // order. Mirrors src/reference/forward.rs.
-// The camera branch is outside the texel loop and the channels are unrolled, because
+// The camera branch is outside the per-texel loop and the channels are unrolled, because
 // lavapipe runs invocations as SIMD lanes and private arrays indexed in loops are slow there.
 
 @group(0) @binding(2) var<storage, read> pixels: array<Pixel>;

@@ -1,9 +1,9 @@
 // tile_uniform.wgsl: where a gather pass reads its parameters and its looped-over records
 // (`Tiled`) on a software adapter (lavapipe): one scene per dispatch, and one uniform chunk
-// of CHUNK records bound per dispatch. Its
-// invocations are SIMD lanes, and it reads uniform memory at an index common to all lanes
-// once, but storage and workgroup memory inside a loop lane by lane, which would halve
-// its speed. Appended instead of tile_workgroup.wgsl (see `Pass::source`).
+// of CHUNK records bound per dispatch. Its invocations are SIMD lanes, and it reads uniform
+// memory at an index common to all lanes once, but storage and workgroup memory inside a
+// loop lane by lane, which costs it a third or more of its speed (docs/gpu.md). Appended
+// instead of tile_workgroup.wgsl (see `Pass::source`).
 
 // One scene per dispatch (z = 0), from a dynamic offset.
 @group(0) @binding(0) var<uniform> scenes: array<Params, 1>;
