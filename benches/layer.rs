@@ -29,6 +29,16 @@
 //! reference, so a few pixels can show d_normals errors near 1e-4 in every f32
 //! implementation alike (bumpy256 with clay does: one sky texel at n . w = -4e-10).
 //!
+//! The `gpu` path also prints, per scene, the GPU time of each pass of its last forward
+//! and its last backward call (timestamp queries, where the adapter has them; in
+//! layer.json as `pass_timings`).
+//!
+//! Before the runs, an occupancy table (`--occupancy` prints it alone and exits): for each
+//! scene and pass, the dispatches, workgroups and invocations per dispatch, before
+//! (the shape of commit fa34885: one dispatch per uniform chunk, one slice, which is also
+//! what a software adapter gets now) and after (the plan on a large GPU, src/gpu/plan.rs),
+//! against a large GPU's resident invocations: an H100 SXM's 132 SMs x 2048 = 270,336.
+//!
 //! Output: a table on stdout; target/bench/layer.json and layer.csv.
 
 mod common;
@@ -41,6 +51,9 @@ use common::{
     BUMPY_SEED, Files, flat3, list, median, num, read_npy, rel_err, run_peers, target_dir,
     upstream_for, write, write_inputs,
 };
+use matedit::gpu::layout::WG;
+use matedit::gpu::plan::LARGE_GPU_RESIDENT;
+use matedit::gpu::{Dispatch, Pass, PassTiming, Planner, Tiles};
 use matedit::io::npy;
 use matedit::prepare::Prepared;
 use matedit::reference::{self, GradientsF64};
@@ -62,6 +75,7 @@ cargo bench --bench layer -- [OPTIONS]
   --threads N        rayon threads here and --threads of the command line [2, as the peers]
   --env FILE         an .exr or .npy env map instead of the first in ../shared/data/envmaps
   --out DIR          where layer.json and layer.csv go [target/bench]
+  --occupancy        print the occupancy table (dispatch shapes against a large GPU) and exit
   --keep             keep the files given to the command line and the peers, and what they
                      wrote, in DIR/inputs/SCENE-MATERIAL (else a temporary folder), with the
                      reference's image, d_env and d_normals as float32 reference_*.npy";
@@ -81,6 +95,7 @@ struct Opts {
     env: Option<PathBuf>,
     out: PathBuf,
     keep: bool,
+    occupancy: bool,
 }
 
 fn parse_args() -> Result<Opts, String> {
@@ -97,6 +112,7 @@ fn parse_args() -> Result<Opts, String> {
         env: None,
         out: target_dir().join("bench"),
         keep: false,
+        occupancy: false,
     };
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -118,6 +134,7 @@ fn parse_args() -> Result<Opts, String> {
             "--env" => o.env = args.next().map(PathBuf::from),
             "--out" => o.out = PathBuf::from(args.next().unwrap_or_default()),
             "--keep" => o.keep = true,
+            "--occupancy" => o.occupancy = true,
             _ => return Err(format!("unknown argument '{a}'")),
         }
     }
@@ -259,6 +276,8 @@ struct Rec {
     pairs: f64,
     errors: Value,
     extra: serde_json::Map<String, Value>,
+    /// GPU time per pass of the last call (in-process `gpu` path only).
+    timings: Vec<PassTiming>,
 }
 
 impl Rec {
@@ -280,13 +299,25 @@ impl Rec {
 }
 
 /// fwd and fb timings of one renderer: warm-up (if asked), then `reps` runs of each.
+/// What [`time_renderer`] measured: forward and forward + backward seconds per run, the
+/// last image and gradients, and the per-pass GPU times of the last forward and the last
+/// backward call (empty off the GPU or without timestamp queries).
+struct Timed {
+    fwd: Vec<f64>,
+    fb: Vec<f64>,
+    image: Image,
+    grads: Gradients,
+    fwd_passes: Vec<PassTiming>,
+    bwd_passes: Vec<PassTiming>,
+}
+
 fn time_renderer(
     r: &Renderer,
     batch: &Batch,
     upstream: &[Image],
     reps: usize,
     warm_up: bool,
-) -> Result<(Vec<f64>, Vec<f64>, Image, Gradients), matedit::Error> {
+) -> Result<Timed, matedit::Error> {
     if warm_up {
         r.render(batch)?;
     }
@@ -298,6 +329,7 @@ fn time_renderer(
         fwd.push(s.elapsed().as_secs_f64());
         image = out.into_iter().next();
     }
+    let fwd_passes = r.last_timings();
     if warm_up {
         r.render(batch)?;
         r.backward(batch, upstream)?;
@@ -312,12 +344,112 @@ fn time_renderer(
         image = out.into_iter().next();
         grads = g.into_iter().next();
     }
-    Ok((
+    Ok(Timed {
         fwd,
         fb,
-        image.expect("reps >= 1"),
-        grads.expect("reps >= 1"),
-    ))
+        image: image.expect("reps >= 1"),
+        grads: grads.expect("reps >= 1"),
+        fwd_passes,
+        bwd_passes: r.last_timings(),
+    })
+}
+
+/// The GPU time of each pass, printed under the path's rows; as JSON for layer.json.
+fn pass_timings(call: &str, timings: &[PassTiming]) -> Value {
+    if timings.is_empty() {
+        return Value::Null;
+    }
+    println!("  {call}: GPU timestamps per pass");
+    for t in timings {
+        let rate = t
+            .pairs_per_second()
+            .map_or("-".to_string(), |r| format!("{:.1}", r / 1e6));
+        println!(
+            "    {:<16} {:>10.6} s {:>9} Mpairs/s  {} compute passes",
+            t.pass, t.seconds, rate, t.compute_passes
+        );
+    }
+    json!(
+        timings
+            .iter()
+            .map(
+                |t| json!({"pass": t.pass, "seconds": t.seconds, "pairs": t.pairs,
+                "compute_passes": t.compute_passes})
+            )
+            .collect::<Vec<_>>()
+    )
+}
+
+/// The occupancy table: for each scene, call and pass, the dispatches and the largest's
+/// workgroups and invocations, before (fa34885: a dispatch per uniform chunk, one slice;
+/// also what a software adapter gets now) and after (the plan on a large GPU), against a
+/// large GPU's resident invocations.
+fn occupancy(scenes: &[String], env: &EnvMap, material: &matedit::Material) {
+    let after = Planner::large_gpu();
+    let mut before = Planner::large_gpu().with_slices(1);
+    before.tiles = Tiles::Uniform;
+    println!(
+        "\noccupancy against a large GPU (assumed: an H100 SXM, 132 SMs x 2048 resident \
+         invocations = {LARGE_GPU_RESIDENT}; workgroups of {WG} invocations)"
+    );
+    println!(
+        "{:<10} {:<4} {:<15} {:<6} {:>10} {:>15} {:>12} {:>9}",
+        "scene", "call", "pass", "shape", "dispatches", "workgroups", "invocations", "resident"
+    );
+    for name in scenes {
+        let normals = normals_of(name);
+        let up = upstream_for(normals.width, normals.height);
+        let scene = Scene {
+            normals,
+            env: env.clone(),
+            material: material.clone(),
+            camera: Camera::Orthographic,
+        };
+        let prep = Prepared::new(&scene);
+        let (np, nl, nt) = (prep.pixels.len(), prep.lit.len(), prep.texels.len());
+        let active = prep
+            .pixels
+            .iter()
+            .filter(|p| up.pixels[p.index].iter().any(|&v| v != 0.0))
+            .count();
+        for (call, plan) in [
+            ("fwd", (&before.forward(np, nl), &after.forward(np, nl))),
+            (
+                "bwd",
+                (
+                    &before.backward(np, nl, nt, active),
+                    &after.backward(np, nl, nt, active),
+                ),
+            ),
+        ] {
+            let mut passes: Vec<Pass> = Vec::new();
+            for d in plan.0.iter().chain(plan.1) {
+                if !passes.contains(&d.pass) {
+                    passes.push(d.pass);
+                }
+            }
+            for pass in passes {
+                for (shape, ds) in [("before", plan.0), ("after", plan.1)] {
+                    let ds: Vec<&Dispatch> = ds.iter().filter(|d| d.pass == pass).collect();
+                    let Some(big) = ds.iter().max_by_key(|d| d.invocations()) else {
+                        continue;
+                    };
+                    let [x, y, z] = big.workgroups;
+                    println!(
+                        "{:<10} {:<4} {:<15} {:<6} {:>10} {:>15} {:>12} {:>8.1}%",
+                        name,
+                        call,
+                        pass.name(),
+                        shape,
+                        ds.len(),
+                        format!("{x} x {y} x {z}"),
+                        big.invocations(),
+                        100.0 * big.invocations() as f64 / LARGE_GPU_RESIDENT as f64
+                    );
+                }
+            }
+        }
+    }
 }
 
 // ---------------------------------------------------------------------------------------
@@ -546,6 +678,10 @@ fn main() {
     let (env, env_desc) = load_env(&opts);
     println!("env: {env_desc}; equirect, orthographic camera");
     let materials = common::materials(&opts.materials);
+    occupancy(&opts.scenes, &env, &materials[0]);
+    if opts.occupancy {
+        return;
+    }
 
     // the command line and the peers
     let cli_devices: Vec<&str> = if opts.cli_reps == 0 {
@@ -631,6 +767,7 @@ fn main() {
                 pairs,
                 errors,
                 extra: serde_json::Map::new(),
+                timings: Vec::new(),
             };
 
             // in-process paths
@@ -673,22 +810,35 @@ fn main() {
                     } else {
                         opts.reps
                     };
-                    time_renderer(r, &batch, &ups, reps, path != "reference").map(
-                        |(tf, tb, img, g)| {
-                            (
-                                rec(path, "fwd", tf, errors_f32(&truth, &img, None)),
-                                rec(path, "fb", tb, errors_f32(&truth, &img, Some(&g))),
-                            )
-                        },
-                    )
+                    time_renderer(r, &batch, &ups, reps, path != "reference").map(|t| {
+                        let mut a = rec(path, "fwd", t.fwd, errors_f32(&truth, &t.image, None));
+                        let mut b = rec(
+                            path,
+                            "fb",
+                            t.fb,
+                            errors_f32(&truth, &t.image, Some(&t.grads)),
+                        );
+                        a.timings = t.fwd_passes;
+                        b.timings = t.bwd_passes;
+                        (a, b)
+                    })
                 };
                 match timed {
-                    Ok((a, b)) => {
+                    Ok((mut a, mut b)) => {
                         if path == "cpu" {
                             cpu_s = Some((a.median(), b.median()));
                         }
                         print_row(&a);
                         print_row(&b);
+                        for (r, call) in [
+                            (&mut a, "last forward call"),
+                            (&mut b, "last backward call"),
+                        ] {
+                            let t = pass_timings(call, &r.timings);
+                            if !t.is_null() {
+                                r.extra.insert("pass_timings".into(), t);
+                            }
+                        }
                         records.push(a);
                         records.push(b);
                     }

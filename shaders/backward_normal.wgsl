@@ -1,84 +1,104 @@
-// backward_normal.wgsl: dLoss/dn. One invocation per foreground pixel, looping over one
-// uniform chunk of lit texels per dispatch. Mirrors src/reference/backward_normal.rs.
+// backward_normal.wgsl: dLoss/dn. One invocation per foreground pixel (x) and texel slice
+// (y), over the slice's lit texels a tile at a time, as forward.wgsl; writes (first
+// range) or adds the slice's sum, and reduce_slices adds the slices in order.
+// Mirrors src/reference/backward_normal.rs.
 //
 // dLoss/dn = sum_i [ (sum_k G^k L^k d_omega f^k) w_i
 //                    + c_i (sum_k G^k L^k d_omega sum_s E_s m0_s m1_s x^(m1_s - 1)) h ]
 
-@group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<uniform> texels: array<Texel, TEXEL_CHUNK>;
 @group(0) @binding(2) var<storage, read> pixels: array<Pixel>;
+// [slice * slice_stride + pixel_base + pixel]
 @group(0) @binding(3) var<storage, read_write> d_normals: array<vec4<f32>>;
 
+// The lit texels, read through `tile` (tile_workgroup.wgsl or tile_uniform.wgsl).
+alias Tiled = Texel;
+// Texels per uniform chunk on a software adapter: 252 * 256 bytes = 64512 <= 64 KiB.
+const CHUNK: u32 = 252u;
+
 @compute @workgroup_size(WG)
-fn backward_normal(@builtin(global_invocation_id) gid: vec3<u32>) {
+fn backward_normal(@builtin(global_invocation_id) gid: vec3<u32>,
+                   @builtin(workgroup_id) wg: vec3<u32>,
+                   @builtin(local_invocation_index) li: u32) {
+    let z = wg.z;
+    let n_pixels = scenes[z].n_pixels;
     let p = gid.x;
-    if p >= params.n_pixels {
+    let live = p < n_pixels;
+    // lanes past the end load the last pixel and add nothing: they still load tiles
+    let px = pixels[scenes[z].pixel_base + min(p, max(n_pixels, 1u) - 1u)];
+    let n = px.n;
+    let nn_m1 = px.nn_m1;
+    let wp = px.wp.xyz;
+    let g = px.g.xyz;
+    let start = scenes[z].texel_base + wg.y * scenes[z].slice_len;
+    let end = min(start + scenes[z].slice_len, scenes[z].texel_base + scenes[z].n_texels);
+    var acc = vec3<f32>(0.0);
+    for (var t0 = start; t0 < end; t0 += TILE) {
+        let base = load_tile(t0, end, li);
+        let m = select(0u, min(TILE, end - t0), live);
+        if scenes[z].perspective == 0u {
+            for (var i = 0u; i < m; i++) {
+                let w = tile[base + i].w.xyz;
+                let c = dot(n, w);
+                if c <= 0.0 {
+                    continue;
+                }
+                let h = tile[base + i].h.xyz;
+                let xl = lobe_x(h, n, nn_m1);
+                let x = xl.x;
+                let lnx = xl.y;
+                // constant lobes are in fconst (no dependence on x); lobes with scale 0 are left out
+                var f = tile[base + i].fconst.xyz;
+                var dx = vec3<f32>(0.0);
+                for (var a = 0u; a < scenes[z].n_lobes; a++) {
+                    let m0 = tile[base + i].lobes[2u * a].xyz;
+                    let m1 = tile[base + i].lobes[2u * a + 1u].xyz;
+                    let e = stable_expm1(m0 * lobe_pow(x, lnx, m1));
+                    f += e;
+                    dx += (e + 1.0) * m0 * lobe_dpow(x, lnx, m1);
+                }
+                let gl = g * tile[base + i].ld.xyz;
+                acc += dot(gl, f) * w + (c * dot(gl, dx)) * h;
+            }
+        } else {
+            for (var i = 0u; i < m; i++) {
+                let w = tile[base + i].w.xyz;
+                let c = dot(n, w);
+                if c <= 0.0 {
+                    continue;
+                }
+                let hv = half_vector(w, wp);
+                let h = hv.xyz;
+                let b = spline_basis(hv.w);
+                let xl = lobe_x(h, n, nn_m1);
+                let x = xl.x;
+                let lnx = xl.y;
+                // active lobes, then constant lobes (no dependence on x); scale 0 left out
+                var f = vec3<f32>(0.0);
+                var dx = vec3<f32>(0.0);
+                for (var q = 0u; q < scenes[z].n_lobes; q++) {
+                    let m0 = lobe_coef(b, q * 12u, z);
+                    let m1 = lobe_coef(b, q * 12u + 6u, z);
+                    let e = stable_expm1(m0 * lobe_pow(x, lnx, m1));
+                    f += e;
+                    dx += (e + 1.0) * m0 * lobe_dpow(x, lnx, m1);
+                }
+                for (var q = scenes[z].n_lobes; q < scenes[z].n_lobes + scenes[z].n_const; q++) {
+                    f += stable_expm1(lobe_coef(b, q * 12u, z));
+                }
+                let gl = g * tile[base + i].ld.xyz;
+                let along_w = dot(gl, f);
+                let along_h = dot(gl, dx);
+                acc += along_w * w + (c * along_h) * h;
+            }
+        }
+    }
+    if !live {
         return;
     }
-    let n = pixels[p].n;
-    let nn_m1 = pixels[p].nn_m1;
-    let wp = pixels[p].wp.xyz;
-    let g = pixels[p].g.xyz;
-    var acc = vec3<f32>(0.0);
-    if params.perspective == 0u {
-        for (var i = 0u; i < params.n_texels; i++) {
-            let w = texels[i].w.xyz;
-            let c = dot(n, w);
-            if c <= 0.0 {
-                continue;
-            }
-            let h = texels[i].h.xyz;
-            let xl = lobe_x(h, n, nn_m1);
-            let x = xl.x;
-            let lnx = xl.y;
-            // constant lobes are in fconst (no dependence on x); lobes with scale 0 are left out
-            var f = texels[i].fconst.xyz;
-            var dx = vec3<f32>(0.0);
-            for (var a = 0u; a < params.n_lobes; a++) {
-                let m0 = texels[i].lobes[2u * a].xyz;
-                let m1 = texels[i].lobes[2u * a + 1u].xyz;
-                let e = stable_expm1(m0 * lobe_pow(x, lnx, m1));
-                f += e;
-                dx += (e + 1.0) * m0 * lobe_dpow(x, lnx, m1);
-            }
-            let gl = g * texels[i].ld.xyz;
-            acc += dot(gl, f) * w + (c * dot(gl, dx)) * h;
-        }
+    let o = wg.y * scenes[z].slice_stride + scenes[z].pixel_base + p;
+    if scenes[z].first == 1u {
+        d_normals[o] = vec4<f32>(acc, 0.0);
     } else {
-        for (var i = 0u; i < params.n_texels; i++) {
-            let w = texels[i].w.xyz;
-            let c = dot(n, w);
-            if c <= 0.0 {
-                continue;
-            }
-            let hv = half_vector(w, wp);
-            let h = hv.xyz;
-            let b = spline_basis(hv.w);
-            let xl = lobe_x(h, n, nn_m1);
-            let x = xl.x;
-            let lnx = xl.y;
-            // active lobes, then constant lobes (no dependence on x); scale 0 left out
-            var f = vec3<f32>(0.0);
-            var dx = vec3<f32>(0.0);
-            for (var q = 0u; q < params.n_lobes; q++) {
-                let m0 = lobe_coef(b, q * 12u);
-                let m1 = lobe_coef(b, q * 12u + 6u);
-                let e = stable_expm1(m0 * lobe_pow(x, lnx, m1));
-                f += e;
-                dx += (e + 1.0) * m0 * lobe_dpow(x, lnx, m1);
-            }
-            for (var q = params.n_lobes; q < params.n_lobes + params.n_const; q++) {
-                f += stable_expm1(lobe_coef(b, q * 12u));
-            }
-            let gl = g * texels[i].ld.xyz;
-            let along_w = dot(gl, f);
-            let along_h = dot(gl, dx);
-            acc += along_w * w + (c * along_h) * h;
-        }
-    }
-    if params.first == 1u {
-        d_normals[p] = vec4<f32>(acc, 0.0);
-    } else {
-        d_normals[p] += vec4<f32>(acc, 0.0);
+        d_normals[o] += vec4<f32>(acc, 0.0);
     }
 }

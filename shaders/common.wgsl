@@ -2,11 +2,7 @@
 // src/gpu/layout.rs, checked by tests/shaders.rs), the spline basis (mirrors src/spline.rs),
 // the half vector and the lobe math (mirror src/reference/common.rs). No entry point.
 
-// Texels per uniform chunk: 252 * 256 bytes = 64512 bytes <= 64 KiB, a multiple of 256.
-const TEXEL_CHUNK: u32 = 252u;
-// Pixels per uniform chunk: 1344 * 48 bytes = 64512 bytes.
-const PIXEL_CHUNK: u32 = 1344u;
-// Threads per workgroup in every pass.
+// Threads per workgroup in every pass, and records per workgroup-memory tile.
 const WG: u32 = 64u;
 const HALF_PI: f32 = 1.5707963267948966;
 // log(x) is taken of max(x, TINY) so that it is finite; x <= 0 is handled by selects.
@@ -15,13 +11,16 @@ const TINY: f32 = 1e-30;
 const DPOW_MAX: f32 = 1e10;
 const HALF_VECTOR_EPS: f32 = 1e-6;
 
-// One dispatch's parameters. Kept in sync with `Params` in src/gpu/layout.rs.
+// One dispatch's (or one scene's, in a batched dispatch) parameters. Kept in sync with
+// `Params` in src/gpu/layout.rs.
 struct Params {
-    // pixels in the pixel list (per-pixel passes) or in the uniform pixel chunk (texel pass)
+    // pixels bound (per-pixel passes: one invocation each; backward_texel: looped over);
+    // reduce_slices: the vec4 elements of one slice
     n_pixels: u32,
-    // texels in the uniform texel chunk (per-pixel passes) or in the texel list (texel pass)
+    // texels bound (per-pixel passes: looped over; backward_texel: one invocation each;
+    // reduce_ctrl: summed)
     n_texels: u32,
-    // 1: the first chunk of a sum, so write instead of add
+    // 1: the first range of a sum, so write instead of add
     first: u32,
     // 1: perspective camera, so h, theta_d and the coefficients depend on the pair
     perspective: u32,
@@ -29,8 +28,17 @@ struct Params {
     n_lobes: u32,
     // perspective camera: the number of constant lobes after the active ones in lc
     n_const: u32,
-    _pad0: u32,
-    _pad1: u32,
+    // records of the looped-over list in one slice (slice = workgroup_id.y)
+    slice_len: u32,
+    // slices (reduce_slices: the partial sums per element)
+    n_slices: u32,
+    // the scene's first pixel in the pixel buffers (a batch's scenes are concatenated)
+    pixel_base: u32,
+    // the scene's first texel in the texel buffers
+    texel_base: u32,
+    // elements between two slices' partial sums (all scenes' outputs)
+    slice_stride: u32,
+    _pad: u32,
     // cc[(k * 2 + t) * 6 + j] = (ctrl[idx(k, 0, t, j)], ctrl[idx(k, 1, t, j)], ctrl[idx(k, 2, t, j)], 0)
     cc: array<vec4<f32>, 36>,
     // lc[(q * 2 + t) * 6 + j]: the same over channels (R, G, B) for the q-th lobe of the
@@ -108,23 +116,6 @@ fn half_vector(w: vec3<f32>, wp: vec3<f32>) -> vec4<f32> {
         h = s / len;
     }
     return vec4<f32>(h, atan2(length(w - wp), len));
-}
-
-// The coefficient vector (over lobes) at cc[base..base + 6] and the basis b, where
-// base = (k * 2 + t) * 6 for channel k, coefficient t. Unrolled: private arrays indexed in
-// loops are slow on SIMD backends such as lavapipe.
-fn pair_coef(b: array<f32, 6>, base: u32) -> vec3<f32> {
-    return b[0] * params.cc[base].xyz + b[1] * params.cc[base + 1u].xyz
-        + b[2] * params.cc[base + 2u].xyz + b[3] * params.cc[base + 3u].xyz
-        + b[4] * params.cc[base + 4u].xyz + b[5] * params.cc[base + 5u].xyz;
-}
-
-// The coefficient vector (over channels) of lobe q, coefficient t at the basis b, where
-// base = (q * 2 + t) * 6 indexes lc.
-fn lobe_coef(b: array<f32, 6>, base: u32) -> vec3<f32> {
-    return b[0] * params.lc[base].xyz + b[1] * params.lc[base + 1u].xyz
-        + b[2] * params.lc[base + 2u].xyz + b[3] * params.lc[base + 3u].xyz
-        + b[4] * params.lc[base + 4u].xyz + b[5] * params.lc[base + 5u].xyz;
 }
 
 // exp(y) - 1 without cancellation: a degree-8 Taylor polynomial where |y| < 0.5

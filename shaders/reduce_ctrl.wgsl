@@ -1,6 +1,7 @@
 // reduce_ctrl.wgsl: dLoss/dctrl = the sum over texels of each texel's share. One workgroup
-// per control point: each thread sums a strided slice, then a tree in workgroup memory, so
-// the order of additions is fixed. Mirrors src/reference/reduce_ctrl.rs.
+// per control point (x) and scene of a batch (z, n_texels shares each): each thread sums a
+// strided slice, then a tree in workgroup memory, so the order of additions is fixed.
+// Mirrors src/reference/reduce_ctrl.rs.
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> d_share: array<f32>;
@@ -12,9 +13,10 @@ var<workgroup> partial: array<f32, WG>;
 fn reduce_ctrl(@builtin(workgroup_id) wg: vec3<u32>,
                @builtin(local_invocation_index) li: u32) {
     let col = wg.x;
+    let base = wg.z * params.n_texels;
     var s = 0.0;
     for (var i = li; i < params.n_texels; i += WG) {
-        s += d_share[i * 108u + col];
+        s += d_share[(base + i) * 108u + col];
     }
     partial[li] = s;
     workgroupBarrier();
@@ -25,10 +27,11 @@ fn reduce_ctrl(@builtin(workgroup_id) wg: vec3<u32>,
         workgroupBarrier();
     }
     if li == 0u {
+        let o = wg.z * 108u + col;
         if params.first == 1u {
-            d_ctrl[col] = partial[0];
+            d_ctrl[o] = partial[0];
         } else {
-            d_ctrl[col] += partial[0];
+            d_ctrl[o] += partial[0];
         }
     }
 }

@@ -92,6 +92,11 @@ impl std::str::FromStr for Device {
 pub trait Backend: Send + Sync {
     /// A one-line description: which backend and adapter.
     fn describe(&self) -> String;
+    /// Device time per pass of the last call: GPU timestamps on the GPU backend where the
+    /// adapter has them; empty elsewhere.
+    fn last_timings(&self) -> Vec<gpu::PassTiming> {
+        Vec::new()
+    }
     /// One image per prepared scene (`width` x `height`, 0 off its pixels).
     fn render_prepared(&self, preps: &[Prepared]) -> Result<Vec<Image>>;
     /// One set of gradients per prepared scene, for upstream dLoss/dImage `upstream` (one
@@ -191,6 +196,11 @@ impl Renderer {
     /// Which backend and adapter this renderer runs on.
     pub fn describe(&self) -> String {
         self.backend.describe()
+    }
+
+    /// Device time per pass of the last call (see [`Backend::last_timings`]).
+    pub fn last_timings(&self) -> Vec<gpu::PassTiming> {
+        self.backend.last_timings()
     }
 
     /// The backend, for the functions of [`lod`].

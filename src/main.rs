@@ -8,7 +8,7 @@
 use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use clap::{Args, Parser, Subcommand};
 use matedit::io::job::{MaterialSource, NormalsSource, Plan, SceneOptions};
@@ -308,6 +308,9 @@ struct SceneArgs {
     /// A JSON manifest listing several scenes, rendered in one batch (see docs/FORMATS.md). Options above are defaults for what it leaves out.
     #[arg(long, value_name = "MANIFEST")]
     batch: Option<PathBuf>,
+    /// Print on stderr the time of each pass of the last call on the device (GPU timestamps: seconds and pixel-texel pairs per second) where the adapter has timestamp queries; on other devices the call's host time.
+    #[arg(long)]
+    timings: bool,
 }
 
 #[derive(Args)]
@@ -493,9 +496,13 @@ fn render(args: &RenderArgs) -> Result<(), Failure> {
     let accuracy = args.scene.accuracy();
     check_method(&accuracy, &loaded.batch)?;
     let renderer = renderer(&args.scene)?;
+    let start = Instant::now();
     let (images, choices) = with_progress("rendering", || {
         renderer.render_with(&loaded.batch, &accuracy)
     })?;
+    if args.scene.timings {
+        print_timings(&renderer, start.elapsed());
+    }
     report(&accuracy, &choices);
     let preview = args.preview.preview();
     let mut staged = Vec::with_capacity(images.len());
@@ -512,6 +519,36 @@ fn render(args: &RenderArgs) -> Result<(), Failure> {
         );
     }
     Ok(())
+}
+
+/// `--timings`: per pass, the GPU time and pairs per second of the last call on the device,
+/// or the host time where there are no GPU timestamps.
+fn print_timings(renderer: &Renderer, host: Duration) {
+    let timings = renderer.last_timings();
+    if timings.is_empty() {
+        eprintln!(
+            "matedit: timings: {:.6} s on the host (per-pass times are GPU timestamps: --device gpu on an adapter with timestamp queries)",
+            host.as_secs_f64()
+        );
+        return;
+    }
+    eprintln!("matedit: timings (GPU timestamps, last call on the device):");
+    for t in &timings {
+        let rate = t
+            .pairs_per_second()
+            .map_or("-".to_string(), |r| format!("{:.1} M pairs/s", r * 1e-6));
+        eprintln!(
+            "matedit:   {:<16} {:>11.6} s  {:>18}  ({} compute passes)",
+            t.pass, t.seconds, rate, t.compute_passes
+        );
+    }
+    let total: f64 = timings.iter().map(|t| t.seconds).sum();
+    eprintln!(
+        "matedit:   {:<16} {:>11.6} s  (host: {:.6} s)",
+        "all passes",
+        total,
+        host.as_secs_f64()
+    );
 }
 
 /// A method named on the command line must suit every scene (tables: orthographic).
@@ -565,9 +602,13 @@ fn grad(args: &GradArgs) -> Result<(), Failure> {
     let accuracy = args.scene.accuracy();
     check_method(&accuracy, &loaded.batch)?;
     let renderer = renderer(&args.scene)?;
+    let start = Instant::now();
     let (grads, choices) = with_progress("differentiating", || {
         renderer.backward_with(&loaded.batch, &upstream, &accuracy)
     })?;
+    if args.scene.timings {
+        print_timings(&renderer, start.elapsed());
+    }
     report(&accuracy, &choices);
     // every scene's files are staged before any is put in place; on a failure the files
     // already in place and the folders this run created are removed: a batch is written
@@ -663,7 +704,7 @@ fn fit_brdf(args: &FitArgs) -> Result<(), Failure> {
         }
         bar
     });
-    let start = std::time::Instant::now();
+    let start = Instant::now();
     let fits = job::fit_all(&brdfs, &options, &|| {
         if let Some(b) = &bar {
             b.inc(1);

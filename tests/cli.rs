@@ -582,7 +582,10 @@ fn grad_batch_failing_half_way_leaves_nothing() {
         "{err}"
     );
     assert!(err.contains("d_env.npy"), "{err}");
-    assert!(!d.path().join("g0").exists(), "the run's folder was left behind");
+    assert!(
+        !d.path().join("g0").exists(),
+        "the run's folder was left behind"
+    );
     assert_eq!(listing(&d.path().join("g1")), ["d_env.npy"]);
 }
 
@@ -1155,5 +1158,40 @@ fn bad_levels_of_detail() {
         assert_eq!(res.status.code(), Some(2), "{args:?}: {stderr}");
         assert!(stderr.contains(want), "{args:?}: {stderr}");
         assert!(!out.exists());
+    }
+}
+
+#[test]
+fn timings_on_the_host_and_per_gpu_pass() {
+    let d = dir();
+    let out = d.path().join("t.npy");
+    let run = |device: &str| {
+        let mut cmd = matedit();
+        cmd.args(["render", "-o", path_str(&out), "--sphere", "16"])
+            .args(["--env-size", "8x16", "--device", device, "--timings"]);
+        cmd.output().expect("runs")
+    };
+    // off the GPU: the call's host time, and a word on where per-pass times come from
+    let o = run("cpu");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("matedit: timings: ") && err.contains("s on the host"),
+        "{err}"
+    );
+    // on the GPU (lavapipe in CI): one line per pass, the forward with its pairs per second
+    if std::env::var("MATEDIT_REQUIRE_GPU").as_deref() == Ok("1") {
+        let o = run("gpu");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{err}");
+        let forward = err.lines().find(|l| {
+            l.trim_start_matches("matedit:")
+                .trim()
+                .starts_with("forward")
+        });
+        assert!(
+            forward.is_some_and(|l| l.contains("M pairs/s")),
+            "no forward timing: {err}"
+        );
     }
 }

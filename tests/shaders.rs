@@ -3,11 +3,15 @@
 
 use std::mem::{offset_of, size_of};
 
-use matedit::gpu::Pass;
 use matedit::gpu::layout::{PIXEL_CHUNK, Params, Pixel, TEXEL_CHUNK, Texel, WG};
+use matedit::gpu::{Pass, Tiles};
 
 fn module(pass: Pass) -> naga::Module {
-    let src = pass.source();
+    module_with(pass, Tiles::Workgroup)
+}
+
+fn module_with(pass: Pass, tiles: Tiles) -> naga::Module {
+    let src = pass.source(tiles);
     let module = naga::front::wgsl::parse_str(&src)
         .unwrap_or_else(|e| panic!("{}: {}", pass.name(), e.emit_to_string(&src)));
     naga::valid::Validator::new(
@@ -50,8 +54,11 @@ fn wgsl_u32_const(m: &naga::Module, name: &str) -> u32 {
 
 #[test]
 fn every_pass_parses_and_validates() {
-    for pass in Pass::ALL {
-        let m = module(pass);
+    for (pass, tiles) in Pass::ALL
+        .into_iter()
+        .flat_map(|p| [(p, Tiles::Workgroup), (p, Tiles::Uniform)])
+    {
+        let m = module_with(pass, tiles);
         assert!(
             m.entry_points.iter().any(|e| e.name == pass.name()),
             "{} has no entry point of its name",
@@ -88,8 +95,12 @@ fn shared_structs_match_rust_layout() {
             ("perspective", offset_of!(Params, perspective)),
             ("n_lobes", offset_of!(Params, n_lobes)),
             ("n_const", offset_of!(Params, n_const)),
-            ("_pad0", offset_of!(Params, _pad)),
-            ("_pad1", offset_of!(Params, _pad) + 4),
+            ("slice_len", offset_of!(Params, slice_len)),
+            ("n_slices", offset_of!(Params, n_slices)),
+            ("pixel_base", offset_of!(Params, pixel_base)),
+            ("texel_base", offset_of!(Params, texel_base)),
+            ("slice_stride", offset_of!(Params, slice_stride)),
+            ("_pad", offset_of!(Params, _pad)),
             ("cc", offset_of!(Params, cc)),
             ("lc", offset_of!(Params, lc)),
         ],
@@ -122,7 +133,12 @@ fn shared_structs_match_rust_layout() {
 #[test]
 fn shared_constants_match_rust() {
     let m = module(Pass::Forward);
-    assert_eq!(wgsl_u32_const(&m, "TEXEL_CHUNK") as usize, TEXEL_CHUNK);
-    assert_eq!(wgsl_u32_const(&m, "PIXEL_CHUNK") as usize, PIXEL_CHUNK);
     assert_eq!(wgsl_u32_const(&m, "WG") as usize, WG);
+    for pass in [Pass::Forward, Pass::BackwardNormal] {
+        assert_eq!(wgsl_u32_const(&module(pass), "CHUNK") as usize, TEXEL_CHUNK);
+    }
+    assert_eq!(
+        wgsl_u32_const(&module(Pass::BackwardTexel), "CHUNK") as usize,
+        PIXEL_CHUNK
+    );
 }

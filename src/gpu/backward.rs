@@ -1,18 +1,15 @@
 //! Host side of shaders/backward_texel.wgsl, reduce_ctrl.wgsl and backward_normal.wgsl.
 
-use super::buffers::{
-    ParamsTable, Readback, dispatch_chunks, output, storage, uniform_chunks, whole, window,
-};
-use super::forward::{encode_per_pixel, scatter_pixels};
-use super::layout::{CHUNK_BYTES, PIXEL_CHUNK, Params, Pixel, Texel, WG};
+use super::buffers::{ParamsTable, bind, bind_scenes, output, reduce_slices, storage, tiled};
+use super::forward::{bases, batch_params, encode_per_pixel, scatter_pixels};
+use super::layout::{Params, Pixel, Texel};
+use super::plan::SHARE_BYTES;
+use super::submission::Submission;
 use super::{GpuRenderer, Pass};
 use crate::error::Result;
 use crate::material::N_PARAMS;
 use crate::prepare::Prepared;
 use crate::scene::{Gradients, Image};
-
-/// Bytes of one texel's shares of dLoss/dctrl.
-const SHARE_BYTES: u64 = (N_PARAMS * 4) as u64;
 
 /// Readback slots of one scene's gradients.
 struct Slots {
@@ -21,82 +18,202 @@ struct Slots {
     d_normals: Vec<usize>,
 }
 
-/// Encodes the per-texel gather over the pixels with a non-zero upstream gradient, and the
-/// reduction of the shares into dLoss/dctrl, texel range by texel range.
-fn encode_texel(
-    r: &GpuRenderer,
-    prep: &Prepared,
-    pixels: &[Pixel],
-    enc: &mut wgpu::CommandEncoder,
-    readback: &mut Readback,
-) -> (Vec<usize>, usize) {
-    let device = &r.ctx.device;
-    let gather = r.pipeline(Pass::BackwardTexel);
-    let reduce = r.pipeline(Pass::ReduceCtrl);
-    let active: Vec<Pixel> = pixels
-        .iter()
-        .filter(|p| p.g[..3].iter().any(|&v| v != 0.0))
-        .copied()
-        .collect();
-    let (pix, chunk_sizes) = uniform_chunks(device, "pixel chunks", &active, PIXEL_CHUNK);
-    let d_ctrl = output(device, "d_ctrl", SHARE_BYTES);
-    let texels: Vec<Texel> = prep
-        .texels
+/// The GPU records of a scene's texels.
+fn texel_records(prep: &Prepared) -> Vec<Texel> {
+    prep.texels
         .iter()
         .map(|t| Texel::new(t, &prep.active_lobes))
+        .collect()
+}
+
+/// Encodes the per-texel gather over the pixels of each scene with a non-zero upstream
+/// gradient, the sums over slices, and the reduction of the shares into dLoss/dctrl: the
+/// whole batch in one dispatch of each where the planner allows, else scene by scene.
+/// Returns per scene the readback slots of d_env (one per texel range) and of d_ctrl.
+fn encode_texel(
+    r: &GpuRenderer,
+    preps: &[Prepared],
+    pixels: &[Vec<Pixel>],
+    sub: &mut Submission<'_>,
+) -> Vec<(Vec<usize>, usize)> {
+    let device = &r.ctx.device;
+    let active: Vec<Vec<Pixel>> = pixels
+        .iter()
+        .map(|px| {
+            px.iter()
+                .filter(|p| p.g[..3].iter().any(|&v| v != 0.0))
+                .copied()
+                .collect()
+        })
         .collect();
-    let range = r.max_records(SHARE_BYTES);
+    let nt: Vec<usize> = preps.iter().map(|p| p.texels.len()).collect();
+    let na: Vec<usize> = active.iter().map(Vec::len).collect();
+    let Some(shape) = r.planner.batch(Pass::BackwardTexel, &nt, &na) else {
+        return preps
+            .iter()
+            .zip(&active)
+            .map(|(prep, a)| encode_texel_scene(r, prep, a, sub))
+            .collect();
+    };
+    let b = preps.len();
+    let texel_base = bases(&nt);
+    let total = shape.outer;
+    let scenes = batch_params(preps, &shape, &na, &nt, &na);
+    let mut table = ParamsTable::default();
+    let offset = table.push_scenes(&scenes);
+    // a batch's maps have one size: the shares of scene z start at z * nt
+    let reduce_offset = table.push(Params {
+        n_texels: nt[0] as u32,
+        first: 1,
+        ..scenes[0]
+    });
+    let params = table.upload(device, "params");
+    let records: Vec<Texel> = preps.iter().flat_map(texel_records).collect();
+    let tex = storage(device, "texels", &records);
+    let pix = storage(device, "pixels", &active.concat());
+    let slices = shape.slices as u64;
+    let d_env = output(device, "d_env", total as u64 * 16 * slices);
+    let d_share = output(device, "d_share", total as u64 * SHARE_BYTES * slices);
+    let d_ctrl = output(device, "d_ctrl", b as u64 * SHARE_BYTES);
+    let bg = bind_scenes(
+        r,
+        Pass::BackwardTexel,
+        &params,
+        b,
+        &[&pix, &tex, &d_env, &d_share],
+    );
+    let [x, y, _] = shape.groups(nt.iter().copied().max().unwrap_or(0));
+    let pairs = nt.iter().zip(&na).map(|(&t, &a)| (t * a) as u64).sum();
+    sub.compute(
+        Pass::BackwardTexel,
+        pairs,
+        &[(&bg, offset, [x, y, b as u32])],
+    );
+    let (env, share) = if shape.slices > 1 {
+        (
+            reduce_slices(r, sub, scenes[0], &d_env, total, shape.slices),
+            reduce_slices(
+                r,
+                sub,
+                scenes[0],
+                &d_share,
+                total * N_PARAMS / 4,
+                shape.slices,
+            ),
+        )
+    } else {
+        (d_env, d_share)
+    };
+    let reduce_bg = bind(r, Pass::ReduceCtrl, &params, &[&share, &d_ctrl]);
+    sub.compute(
+        Pass::ReduceCtrl,
+        0,
+        &[(&reduce_bg, reduce_offset, [N_PARAMS as u32, 1, b as u32])],
+    );
+    (0..b)
+        .map(|z| {
+            let (at, bytes) = (texel_base[z] as u64 * 16, nt[z] as u64 * 16);
+            let env_slot = sub.readback.copy_at(device, &mut sub.enc, &env, at, bytes);
+            let at = z as u64 * SHARE_BYTES;
+            let ctrl_slot = sub
+                .readback
+                .copy_at(device, &mut sub.enc, &d_ctrl, at, SHARE_BYTES);
+            (vec![env_slot], ctrl_slot)
+        })
+        .collect()
+}
+
+/// [`encode_texel`] for one scene, texel range by texel range.
+fn encode_texel_scene(
+    r: &GpuRenderer,
+    prep: &Prepared,
+    active: &[Pixel],
+    sub: &mut Submission<'_>,
+) -> (Vec<usize>, usize) {
+    let device = &r.ctx.device;
+    let texels = texel_records(prep);
+    let shape = r
+        .planner
+        .gather(Pass::BackwardTexel, texels.len(), active.len());
+    let inner = shape.inner_ranges();
+    let pix: Vec<wgpu::Buffer> = inner
+        .iter()
+        .map(|q| tiled(r, "pixels", &active[q.clone()]))
+        .collect();
+    let d_ctrl = output(device, "d_ctrl", SHARE_BYTES);
     let base = Params::for_scene(prep);
     let mut d_env_slots = Vec::new();
-    for (ri, part) in texels.chunks(range).enumerate() {
-        let nt = part.len() as u32;
+    for (ri, o) in shape.outer_ranges().into_iter().enumerate() {
+        let part = &texels[o];
+        let nt = part.len();
         let mut table = ParamsTable::default();
-        let offsets = table.push_chunks(base, &chunk_sizes, |np| (np, nt));
+        let offsets: Vec<u32> = inner
+            .iter()
+            .enumerate()
+            .map(|(k, q)| {
+                table.push(Params {
+                    n_pixels: q.len() as u32,
+                    n_texels: nt as u32,
+                    first: (k == 0) as u32,
+                    slice_len: shape.slice_len,
+                    n_slices: shape.slices,
+                    slice_stride: nt as u32,
+                    ..base
+                })
+            })
+            .collect();
         let reduce_offset = table.push(Params {
             n_pixels: 0,
-            n_texels: nt,
+            n_texels: nt as u32,
             first: (ri == 0) as u32,
             ..base
         });
         let params = table.upload(device, "params");
         let tex = storage(device, "texels", part);
-        let env_bytes = part.len() as u64 * 16;
-        let d_env = output(device, "d_env", env_bytes);
-        let d_share = output(device, "d_share", part.len() as u64 * SHARE_BYTES);
-        let bg = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("backward_texel"),
-            layout: &gather.layout,
-            entries: &[
-                window(0, &params, size_of::<Params>() as u64),
-                window(1, &pix, CHUNK_BYTES),
-                whole(2, &tex),
-                whole(3, &d_env),
-                whole(4, &d_share),
-            ],
-        });
-        let reduce_bg = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("reduce_ctrl"),
-            layout: &reduce.layout,
-            entries: &[
-                window(0, &params, size_of::<Params>() as u64),
-                whole(1, &d_share),
-                whole(2, &d_ctrl),
-            ],
-        });
-        {
-            let mut cp = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("backward_texel"),
-                timestamp_writes: None,
-            });
-            cp.set_pipeline(&gather.pipeline);
-            dispatch_chunks(&mut cp, &bg, &offsets, nt.div_ceil(WG as u32));
-            cp.set_pipeline(&reduce.pipeline);
-            cp.set_bind_group(0, &reduce_bg, &[reduce_offset]);
-            cp.dispatch_workgroups(N_PARAMS as u32, 1, 1);
-        }
-        d_env_slots.push(readback.copy(device, enc, &d_env, env_bytes));
+        let env_bytes = nt as u64 * 16;
+        let slices = shape.slices as u64;
+        let d_env = output(device, "d_env", env_bytes * slices);
+        let d_share = output(device, "d_share", nt as u64 * SHARE_BYTES * slices);
+        let groups: Vec<wgpu::BindGroup> = pix
+            .iter()
+            .map(|p| {
+                bind(
+                    r,
+                    Pass::BackwardTexel,
+                    &params,
+                    &[p, &tex, &d_env, &d_share],
+                )
+            })
+            .collect();
+        let dispatches: Vec<_> = groups
+            .iter()
+            .zip(&offsets)
+            .map(|(bg, &off)| (bg, off, shape.groups(nt)))
+            .collect();
+        sub.compute(
+            Pass::BackwardTexel,
+            nt as u64 * active.len() as u64,
+            &dispatches,
+        );
+        let (env, share) = if shape.slices > 1 {
+            (
+                reduce_slices(r, sub, base, &d_env, nt, shape.slices),
+                reduce_slices(r, sub, base, &d_share, nt * N_PARAMS / 4, shape.slices),
+            )
+        } else {
+            (d_env, d_share)
+        };
+        let reduce_bg = bind(r, Pass::ReduceCtrl, &params, &[&share, &d_ctrl]);
+        sub.compute(
+            Pass::ReduceCtrl,
+            0,
+            &[(&reduce_bg, reduce_offset, [N_PARAMS as u32, 1, 1])],
+        );
+        d_env_slots.push(sub.readback.copy(device, &mut sub.enc, &env, env_bytes));
     }
-    let ctrl_slot = readback.copy(device, enc, &d_ctrl, SHARE_BYTES);
+    let ctrl_slot = sub
+        .readback
+        .copy(device, &mut sub.enc, &d_ctrl, SHARE_BYTES);
     (d_env_slots, ctrl_slot)
 }
 
@@ -106,38 +223,30 @@ pub(super) fn backward(
     preps: &[Prepared],
     upstream: &[Image],
 ) -> Result<Vec<Gradients>> {
-    let device = &r.ctx.device;
-    let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
-        label: Some("backward"),
-    });
-    let mut readback = Readback::default();
-    let slots: Vec<Slots> = preps
+    let mut sub = Submission::new(r, "backward");
+    let pixels: Vec<Vec<Pixel>> = preps
         .iter()
         .zip(upstream)
         .map(|(prep, g)| {
-            let pixels: Vec<Pixel> = prep
-                .pixels
+            prep.pixels
                 .iter()
                 .map(|p| Pixel::new(p, g.pixels[p.index]))
-                .collect();
-            let (d_env, d_ctrl) = encode_texel(r, prep, &pixels, &mut enc, &mut readback);
-            let d_normals = encode_per_pixel(
-                r,
-                Pass::BackwardNormal,
-                prep,
-                &pixels,
-                &mut enc,
-                &mut readback,
-            );
-            Slots {
-                d_env,
-                d_ctrl,
-                d_normals,
-            }
+                .collect()
         })
         .collect();
-    r.ctx.queue.submit([enc.finish()]);
-    let data = readback.finish(device)?;
+    let texel = encode_texel(r, preps, &pixels, &mut sub);
+    let normal = encode_per_pixel(r, Pass::BackwardNormal, preps, &pixels, &mut sub);
+    let slots: Vec<Slots> = texel
+        .into_iter()
+        .zip(normal)
+        .map(|((d_env, d_ctrl), d_normals)| Slots {
+            d_env,
+            d_ctrl,
+            d_normals,
+        })
+        .collect();
+    let (data, run) = sub.finish()?;
+    r.record(run);
     Ok(preps
         .iter()
         .zip(slots)

@@ -1,9 +1,12 @@
-//! Buffer helpers: uploads, uniform chunk tables, per-dispatch params, and the one place
-//! that reads results back (staging buffer, map_async, poll).
+//! Buffer helpers: uploads, per-dispatch params, and the one place that reads results back
+//! (staging buffer, map_async, poll).
 
 use wgpu::util::DeviceExt;
 
 use super::layout::{CHUNK_BYTES, PARAMS_STRIDE, Params};
+use super::pipelines::Tiles;
+use super::submission::Submission;
+use super::{GpuRenderer, Pass};
 use crate::error::{Error, Result};
 
 /// Smallest buffer made: bindings cannot be empty.
@@ -46,17 +49,26 @@ pub fn storage<T: bytemuck::Pod>(
     )
 }
 
-/// Dispatches `groups` workgroups once per uniform chunk: params entry `offsets[c]` with
-/// chunk `c` of the chunk buffer bound at binding 1.
-pub fn dispatch_chunks(
-    cp: &mut wgpu::ComputePass<'_>,
-    bg: &wgpu::BindGroup,
-    offsets: &[u32],
-    groups: u32,
-) {
-    for (c, &off) in offsets.iter().enumerate() {
-        cp.set_bind_group(0, bg, &[off, c as u32 * CHUNK_BYTES as u32]);
-        cp.dispatch_workgroups(groups, 1, 1);
+/// The looped-over records of one inner range of a gather pass, as it reads them: a
+/// storage buffer ([`Tiles::Workgroup`]) or one uniform chunk, padded ([`Tiles::Uniform`]).
+pub fn tiled<T: bytemuck::Pod + Default>(
+    r: &GpuRenderer,
+    label: &str,
+    records: &[T],
+) -> wgpu::Buffer {
+    let device = &r.ctx.device;
+    match r.planner.tiles {
+        Tiles::Workgroup => storage(device, label, records),
+        Tiles::Uniform => {
+            let mut padded = records.to_vec();
+            padded.resize(CHUNK_BYTES as usize / size_of::<T>(), T::default());
+            upload(
+                device,
+                label,
+                bytemuck::cast_slice(&padded),
+                wgpu::BufferUsages::UNIFORM,
+            )
+        }
     }
 }
 
@@ -70,33 +82,6 @@ pub fn output(device: &wgpu::Device, label: &str, bytes: u64) -> wgpu::Buffer {
     })
 }
 
-/// Records padded to whole uniform chunks of [`CHUNK_BYTES`]: returns the buffer and the
-/// number of records in each chunk (one empty chunk for no records).
-pub fn uniform_chunks<T: bytemuck::Pod + Default>(
-    device: &wgpu::Device,
-    label: &str,
-    records: &[T],
-    per_chunk: usize,
-) -> (wgpu::Buffer, Vec<u32>) {
-    let chunks = records.len().div_ceil(per_chunk).max(1);
-    let mut padded = records.to_vec();
-    padded.resize(chunks * per_chunk, T::default());
-    let bytes: &[u8] = bytemuck::cast_slice(&padded);
-    debug_assert_eq!(bytes.len() as u64, chunks as u64 * CHUNK_BYTES);
-    // no records (an all-black map, a map whose texels all have zero solid angle, an
-    // upstream gradient of zeros) is one empty chunk: the passes then write their zero
-    // sums, instead of binding an empty table of dispatches (a validation error)
-    let sizes = if records.is_empty() {
-        vec![0]
-    } else {
-        records.chunks(per_chunk).map(|c| c.len() as u32).collect()
-    };
-    (
-        upload(device, label, bytes, wgpu::BufferUsages::UNIFORM),
-        sizes,
-    )
-}
-
 /// Per-dispatch [`Params`], [`PARAMS_STRIDE`] bytes apart, bound with a dynamic offset.
 #[derive(Default)]
 pub struct ParamsTable {
@@ -106,38 +91,27 @@ pub struct ParamsTable {
 impl ParamsTable {
     /// Appends `p`; returns its dynamic offset.
     pub fn push(&mut self, p: Params) -> u32 {
+        self.push_scenes(&[p])
+    }
+
+    /// Appends `scenes` as one array (a batched dispatch's, one per scene); returns its
+    /// dynamic offset.
+    pub fn push_scenes(&mut self, scenes: &[Params]) -> u32 {
         let offset = self.bytes.len();
-        self.bytes.extend_from_slice(bytemuck::bytes_of(&p));
-        self.bytes.resize(offset + PARAMS_STRIDE as usize, 0);
+        self.bytes.extend_from_slice(bytemuck::cast_slice(scenes));
+        let end = self.bytes.len().next_multiple_of(PARAMS_STRIDE as usize);
+        self.bytes.resize(end, 0);
         offset as u32
     }
 
-    /// One entry per uniform chunk of `sizes`, `first` set on chunk 0 (the start of each
-    /// sum), built by `entry(chunk size)` from `base`; returns their dynamic offsets.
-    pub fn push_chunks(
-        &mut self,
-        base: Params,
-        sizes: &[u32],
-        entry: impl Fn(u32) -> (u32, u32),
-    ) -> Vec<u32> {
-        sizes
-            .iter()
-            .enumerate()
-            .map(|(c, &size)| {
-                let (n_pixels, n_texels) = entry(size);
-                self.push(Params {
-                    n_pixels,
-                    n_texels,
-                    first: (c == 0) as u32,
-                    ..base
-                })
-            })
-            .collect()
-    }
-
-    /// The uniform buffer.
+    /// The buffer (uniform, or storage for the batched gather passes).
     pub fn upload(&self, device: &wgpu::Device, label: &str) -> wgpu::Buffer {
-        upload(device, label, &self.bytes, wgpu::BufferUsages::UNIFORM)
+        upload(
+            device,
+            label,
+            &self.bytes,
+            wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::STORAGE,
+        )
     }
 }
 
@@ -176,6 +150,19 @@ impl Readback {
         src: &wgpu::Buffer,
         bytes: u64,
     ) -> usize {
+        self.copy_at(device, enc, src, 0, bytes)
+    }
+
+    /// Copies `bytes` of `src` from byte `offset` (a multiple of 4) to a new staging
+    /// buffer; returns its slot.
+    pub fn copy_at(
+        &mut self,
+        device: &wgpu::Device,
+        enc: &mut wgpu::CommandEncoder,
+        src: &wgpu::Buffer,
+        offset: u64,
+        bytes: u64,
+    ) -> usize {
         let size = bytes
             .max(MIN_BYTES)
             .next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT);
@@ -185,7 +172,12 @@ impl Readback {
             usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        enc.copy_buffer_to_buffer(src, 0, &staging, 0, size);
+        // the padding past a short source's end is not copied (nothing at all for a scene
+        // of no records at the end of a batch)
+        let size = size.min(src.size().saturating_sub(offset));
+        if size > 0 {
+            enc.copy_buffer_to_buffer(src, offset, &staging, 0, size);
+        }
         self.staging.push((staging, bytes));
         self.staging.len() - 1
     }
@@ -219,4 +211,65 @@ impl Readback {
         }
         Ok(out)
     }
+}
+
+/// A bind group of `pass`'s layout: `params` at binding 0 (one [`Params`] at a dynamic
+/// offset), then the whole of each of `buffers` in order.
+pub fn bind(
+    r: &GpuRenderer,
+    pass: Pass,
+    params: &wgpu::Buffer,
+    buffers: &[&wgpu::Buffer],
+) -> wgpu::BindGroup {
+    bind_scenes(r, pass, params, 1, buffers)
+}
+
+/// [`bind`] with `scenes` [`Params`] at binding 0 (a batched dispatch's).
+pub fn bind_scenes(
+    r: &GpuRenderer,
+    pass: Pass,
+    params: &wgpu::Buffer,
+    scenes: usize,
+    buffers: &[&wgpu::Buffer],
+) -> wgpu::BindGroup {
+    let mut entries = vec![window(0, params, (scenes * size_of::<Params>()) as u64)];
+    entries.extend(
+        buffers
+            .iter()
+            .enumerate()
+            .map(|(k, b)| whole(k as u32 + 1, b)),
+    );
+    r.ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some(pass.name()),
+        layout: &r.pipeline(pass).layout,
+        entries: &entries,
+    })
+}
+
+/// Encodes reduce_slices over `parts` (`slices` slices of `elements` vec4 elements each);
+/// returns the buffer of the sums.
+pub fn reduce_slices(
+    r: &GpuRenderer,
+    sub: &mut Submission<'_>,
+    base: Params,
+    parts: &wgpu::Buffer,
+    elements: usize,
+    slices: u32,
+) -> wgpu::Buffer {
+    let device = &r.ctx.device;
+    let mut table = ParamsTable::default();
+    let offset = table.push(Params {
+        n_pixels: elements as u32,
+        n_slices: slices,
+        ..base
+    });
+    let params = table.upload(device, "reduce_slices params");
+    let total = output(device, "slice sums", elements as u64 * 16);
+    let bg = bind(r, Pass::ReduceSlices, &params, &[parts, &total]);
+    sub.compute(
+        Pass::ReduceSlices,
+        0,
+        &[(&bg, offset, r.planner.reduce_groups(elements))],
+    );
+    total
 }

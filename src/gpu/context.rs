@@ -13,6 +13,9 @@ pub struct GpuContext {
     pub info: wgpu::AdapterInfo,
     /// The limits the device was opened with (the adapter's own).
     pub limits: wgpu::Limits,
+    /// Whether the device was opened with `TIMESTAMP_QUERY` (the adapter has it): then
+    /// every compute pass is timed on the GPU.
+    pub timestamps: bool,
 }
 
 fn rank(t: wgpu::DeviceType) -> u32 {
@@ -68,9 +71,15 @@ impl GpuContext {
         };
         let info = adapter.get_info();
         let limits = adapter.limits();
+        let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
+        let required_features = if timestamps {
+            wgpu::Features::TIMESTAMP_QUERY
+        } else {
+            wgpu::Features::empty()
+        };
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("matedit"),
-            required_features: wgpu::Features::empty(),
+            required_features,
             required_limits: limits.clone(),
             experimental_features: Default::default(),
             memory_hints: wgpu::MemoryHints::Performance,
@@ -82,6 +91,7 @@ impl GpuContext {
             queue,
             info,
             limits,
+            timestamps,
         })
     }
 

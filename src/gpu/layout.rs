@@ -6,26 +6,32 @@ use bytemuck::{Pod, Zeroable};
 use crate::material::{N_PARAMS, idx};
 use crate::prepare::{PixelRec, TexelRec};
 
-/// Texels per uniform chunk (`TEXEL_CHUNK` in common.wgsl).
-pub const TEXEL_CHUNK: usize = 252;
-/// Pixels per uniform chunk (`PIXEL_CHUNK` in common.wgsl).
-pub const PIXEL_CHUNK: usize = 1344;
-/// Threads per workgroup (`WG` in common.wgsl).
+/// Threads per workgroup (`WG` in common.wgsl), and records per workgroup-memory tile.
 pub const WG: usize = 64;
+// a tile of texels fills WebGPU's minimum of 16 KiB of workgroup memory exactly
+const _: () = assert!(WG * size_of::<Texel>() <= 16384);
+/// Texels per uniform chunk on a software adapter (`CHUNK` in forward.wgsl and
+/// backward_normal.wgsl).
+pub const TEXEL_CHUNK: usize = 252;
+/// Pixels per uniform chunk on a software adapter (`CHUNK` in backward_texel.wgsl).
+pub const PIXEL_CHUNK: usize = 1344;
 /// Bytes of one uniform chunk of texels or of pixels: under 64 KiB, a multiple of 256.
 pub const CHUNK_BYTES: u64 = (TEXEL_CHUNK * size_of::<Texel>()) as u64;
 const _: () = assert!(CHUNK_BYTES == (PIXEL_CHUNK * size_of::<Pixel>()) as u64);
 const _: () = assert!(CHUNK_BYTES <= 65536 && CHUNK_BYTES.is_multiple_of(256));
 
-/// One dispatch's parameters (`Params` in common.wgsl).
+/// One dispatch's parameters, or one scene's in a batched dispatch (`Params` in
+/// common.wgsl).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
 pub struct Params {
-    /// Pixels in the pixel list or the uniform pixel chunk.
+    /// Pixels bound (per-pixel passes: one invocation each; backward_texel: looped over);
+    /// reduce_slices: the vec4 elements of one slice.
     pub n_pixels: u32,
-    /// Texels in the uniform texel chunk or the texel list.
+    /// Texels bound (per-pixel passes: looped over; backward_texel: one invocation each;
+    /// reduce_ctrl: summed).
     pub n_texels: u32,
-    /// 1 on the first chunk of a sum: write instead of add.
+    /// 1 on the first range of a sum: write instead of add.
     pub first: u32,
     /// 1 for a perspective camera.
     pub perspective: u32,
@@ -33,8 +39,18 @@ pub struct Params {
     pub n_lobes: u32,
     /// Lobes after the active ones in `lc` whose exponents are all 0 (perspective cameras).
     pub n_const: u32,
+    /// Records of the looped-over list in one slice (the dispatch's y dimension).
+    pub slice_len: u32,
+    /// Slices (reduce_slices: how many partial sums each element has).
+    pub n_slices: u32,
+    /// The scene's first pixel in the pixel buffers (a batch's scenes are concatenated).
+    pub pixel_base: u32,
+    /// The scene's first texel in the texel buffers.
+    pub texel_base: u32,
+    /// Elements between two slices' partial sums (every scene's outputs).
+    pub slice_stride: u32,
     /// Padding to 16 bytes.
-    pub _pad: [u32; 2],
+    pub _pad: u32,
     /// cc[(k * 2 + t) * 6 + j] = the control points j of coefficient t of channel k's three lobes.
     pub cc: [[f32; 4]; 36],
     /// lc[(q * 2 + t) * 6 + j] = the control points j of coefficient t of the q-th lobe of
@@ -92,7 +108,12 @@ impl Params {
             perspective: perspective as u32,
             n_lobes: n_lobes as u32,
             n_const: 0,
-            _pad: [0; 2],
+            slice_len: 0,
+            n_slices: 1,
+            pixel_base: 0,
+            texel_base: 0,
+            slice_stride: 0,
+            _pad: 0,
             cc,
             lc: [[0.0; 4]; 36],
         }

@@ -1,8 +1,10 @@
 //! The GPU path: WGSL compute shaders through wgpu. Forward: one invocation per foreground
-//! pixel, looping over uniform chunks of lit texels. Backward: a per-texel gather for
-//! dLoss/dL and each texel's share of dLoss/dctrl, a fixed-order reduction of the shares,
-//! and a per-pixel pass for dLoss/dn. Every output element has one writer and every sum a
-//! fixed order, so two runs give bitwise equal results.
+//! pixel and slice of the lit texels, the texels read in workgroup-memory tiles. Backward:
+//! a per-texel gather (per slice of the pixels) for dLoss/dL and each texel's share of
+//! dLoss/dctrl, a fixed-order reduction of the shares, and a per-pixel pass for dLoss/dn.
+//! Slices are added in slice order by reduce_slices ([`plan`] chooses their number). Every
+//! output element has one writer and every sum a fixed order, so two runs give bitwise
+//! equal results.
 
 mod backward;
 mod buffers;
@@ -10,21 +12,49 @@ pub mod context;
 mod forward;
 pub mod layout;
 pub mod pipelines;
+pub mod plan;
+mod submission;
+
+use std::sync::Mutex;
 
 pub use context::GpuContext;
-pub use pipelines::Pass;
+pub use pipelines::{Pass, Tiles};
+pub use plan::{Dispatch, Planner, Shape};
 
 use crate::Backend;
 use crate::error::{Error, Result};
 use crate::prepare::Prepared;
 use crate::scene::{Batch, Gradients, Image};
 use pipelines::Pipeline;
+use submission::LastRun;
+
+/// The GPU time of one pass in the last call, from timestamps written at the start and end
+/// of each of its compute passes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PassTiming {
+    /// The pass (the shader's name).
+    pub pass: &'static str,
+    /// Seconds, summed over its compute passes.
+    pub seconds: f64,
+    /// Pixel-texel pairs it covered (0 for the reductions).
+    pub pairs: u64,
+    /// Its compute passes (one per scene and range).
+    pub compute_passes: usize,
+}
+
+impl PassTiming {
+    /// Pairs per second; `None` for a reduction.
+    pub fn pairs_per_second(&self) -> Option<f64> {
+        (self.pairs > 0 && self.seconds > 0.0).then(|| self.pairs as f64 / self.seconds)
+    }
+}
 
 /// The layer on a wgpu device, pipelines built once.
 pub struct GpuRenderer {
     ctx: GpuContext,
     pipelines: Vec<Pipeline>,
-    binding_cap: Option<u64>,
+    planner: Planner,
+    last: Mutex<LastRun>,
 }
 
 impl GpuRenderer {
@@ -35,18 +65,13 @@ impl GpuRenderer {
 
     /// A renderer on an open device.
     pub fn with_context(ctx: GpuContext) -> Result<Self> {
-        let scope = ctx.device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let pipelines = Pass::ALL
-            .iter()
-            .map(|&p| Pipeline::new(&ctx.device, p))
-            .collect();
-        if let Some(e) = pollster::block_on(scope.pop()) {
-            return Err(Error::Gpu(format!("building the pipelines: {e}")));
-        }
+        let planner = Planner::for_limits(&ctx.limits, ctx.is_software());
+        let pipelines = build_pipelines(&ctx.device, planner.tiles)?;
         Ok(GpuRenderer {
             ctx,
             pipelines,
-            binding_cap: None,
+            planner,
+            last: Mutex::new(LastRun::default()),
         })
     }
 
@@ -54,8 +79,60 @@ impl GpuRenderer {
     /// inputs are split into more, smaller dispatches (to bound memory, and to test the
     /// split path on small inputs). At least one workgroup's worth of records is kept.
     pub fn with_binding_cap(mut self, bytes: u64) -> Self {
-        self.binding_cap = Some(bytes);
+        self.planner.max_binding = self.planner.max_binding.min(bytes);
         self
+    }
+
+    /// Caps the workgroups per dispatch dimension below the adapter's limit, so that large
+    /// inputs are split into more dispatches and the reductions spread over y (to test
+    /// those paths on small inputs). At least 1.
+    pub fn with_workgroup_cap(mut self, groups: u32) -> Self {
+        self.planner.max_groups = self.planner.max_groups.min(groups.max(1));
+        self
+    }
+
+    /// Splits the looped-over records of every gather pass into `n` slices (fewer where
+    /// the limits or the records allow fewer) instead of the automatic count.
+    pub fn with_slices(mut self, n: u32) -> Self {
+        self.planner = self.planner.with_slices(n);
+        self
+    }
+
+    /// Reads the gather passes' looped-over records through `tiles` instead of the
+    /// adapter's default ([`Tiles::Uniform`] on a software adapter, else
+    /// [`Tiles::Workgroup`]); rebuilds the pipelines.
+    pub fn with_tiles(mut self, tiles: Tiles) -> Result<Self> {
+        self.pipelines = build_pipelines(&self.ctx.device, tiles)?;
+        self.planner.tiles = tiles;
+        Ok(self)
+    }
+
+    /// The plan this renderer follows.
+    pub fn planner(&self) -> &Planner {
+        &self.planner
+    }
+
+    /// GPU time per pass of the last render or backward call; empty where the adapter has
+    /// no timestamp queries.
+    pub fn last_timings(&self) -> Vec<PassTiming> {
+        self.last
+            .lock()
+            .map(|l| l.timings.clone())
+            .unwrap_or_default()
+    }
+
+    /// Every dispatch of the last render or backward call, in order.
+    pub fn last_dispatches(&self) -> Vec<Dispatch> {
+        self.last
+            .lock()
+            .map(|l| l.dispatches.clone())
+            .unwrap_or_default()
+    }
+
+    fn record(&self, run: LastRun) {
+        if let Ok(mut l) = self.last.lock() {
+            *l = run;
+        }
     }
 
     /// The device and adapter.
@@ -65,19 +142,6 @@ impl GpuRenderer {
 
     fn pipeline(&self, pass: Pass) -> &Pipeline {
         &self.pipelines[Pass::ALL.iter().position(|&p| p == pass).unwrap_or(0)]
-    }
-
-    /// Most records one storage binding (and one dispatch of 64-thread workgroups) may
-    /// hold, for records of `bytes` bytes: inputs beyond it are split into ranges.
-    fn max_records(&self, bytes: u64) -> usize {
-        let limit = self.ctx.limits.max_storage_buffer_binding_size;
-        let by_binding = limit.min(self.binding_cap.unwrap_or(u64::MAX)) / bytes;
-        let by_buffer = self.ctx.limits.max_buffer_size / bytes;
-        let by_dispatch =
-            self.ctx.limits.max_compute_workgroups_per_dimension as u64 * layout::WG as u64;
-        let n = by_binding.min(by_buffer).min(by_dispatch) as usize;
-        // whole workgroups, so that range offsets stay aligned
-        (n / layout::WG * layout::WG).max(layout::WG)
     }
 
     /// Runs `f` inside validation and out-of-memory error scopes.
@@ -100,9 +164,26 @@ impl GpuRenderer {
     }
 }
 
+/// Every pass's pipeline, the gather passes reading through `tiles`.
+fn build_pipelines(device: &wgpu::Device, tiles: Tiles) -> Result<Vec<Pipeline>> {
+    let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let pipelines = Pass::ALL
+        .iter()
+        .map(|&p| Pipeline::new(device, p, tiles))
+        .collect();
+    if let Some(e) = pollster::block_on(scope.pop()) {
+        return Err(Error::Gpu(format!("building the pipelines: {e}")));
+    }
+    Ok(pipelines)
+}
+
 impl Backend for GpuRenderer {
     fn describe(&self) -> String {
         self.ctx.describe()
+    }
+
+    fn last_timings(&self) -> Vec<PassTiming> {
+        GpuRenderer::last_timings(self)
     }
 
     fn render_prepared(&self, preps: &[Prepared]) -> Result<Vec<Image>> {

@@ -1,5 +1,6 @@
-//! The four compute pipelines, built once per renderer. Each pass's WGSL is common.wgsl
-//! followed by the pass's own file, compiled into the binary.
+//! The five compute pipelines, built once per renderer. Each pass's WGSL is common.wgsl
+//! followed by the pass's own file and, for the gather passes, where they read their
+//! looped-over records ([`Tiles`]); compiled into the binary.
 
 use std::num::NonZeroU64;
 
@@ -7,6 +8,18 @@ use super::layout::{CHUNK_BYTES, Params};
 
 /// shaders/common.wgsl.
 pub const COMMON_WGSL: &str = include_str!("../../shaders/common.wgsl");
+
+/// Where the gather passes (forward, backward_normal, backward_texel) read the records they
+/// loop over.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Tiles {
+    /// A storage buffer, a tile of `WG` records at a time loaded into workgroup memory that
+    /// the whole workgroup reads (shaders/tile_workgroup.wgsl): GPUs.
+    Workgroup,
+    /// One uniform chunk per dispatch (shaders/tile_uniform.wgsl): software adapters such
+    /// as lavapipe, which read storage and workgroup memory in loops lane by lane.
+    Uniform,
+}
 
 /// The passes, each one entry point of the same name in shaders/NAME.wgsl.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -19,15 +32,18 @@ pub enum Pass {
     BackwardTexel,
     /// dLoss/dctrl from the shares.
     ReduceCtrl,
+    /// The sum over slices of the other passes' partial sums.
+    ReduceSlices,
 }
 
 impl Pass {
     /// Every pass.
-    pub const ALL: [Pass; 4] = [
+    pub const ALL: [Pass; 5] = [
         Pass::Forward,
         Pass::BackwardNormal,
         Pass::BackwardTexel,
         Pass::ReduceCtrl,
+        Pass::ReduceSlices,
     ];
 
     /// The entry point (and file stem).
@@ -37,26 +53,48 @@ impl Pass {
             Pass::BackwardNormal => "backward_normal",
             Pass::BackwardTexel => "backward_texel",
             Pass::ReduceCtrl => "reduce_ctrl",
+            Pass::ReduceSlices => "reduce_slices",
         }
     }
 
-    /// The pass's WGSL module as assembled: common.wgsl, then the pass.
-    pub fn source(self) -> String {
+    /// Whether the pass loops over records read through [`Tiles`].
+    pub fn is_gather(self) -> bool {
+        matches!(
+            self,
+            Pass::Forward | Pass::BackwardNormal | Pass::BackwardTexel
+        )
+    }
+
+    /// The pass's WGSL module as assembled: common.wgsl, (gather passes) gather.wgsl, the
+    /// pass, then (gather passes) the file of `tiles`.
+    pub fn source(self, tiles: Tiles) -> String {
         let own = match self {
             Pass::Forward => include_str!("../../shaders/forward.wgsl"),
             Pass::BackwardNormal => include_str!("../../shaders/backward_normal.wgsl"),
             Pass::BackwardTexel => include_str!("../../shaders/backward_texel.wgsl"),
             Pass::ReduceCtrl => include_str!("../../shaders/reduce_ctrl.wgsl"),
+            Pass::ReduceSlices => include_str!("../../shaders/reduce_slices.wgsl"),
         };
-        format!("{COMMON_WGSL}\n{own}")
+        let tile = match tiles {
+            _ if !self.is_gather() => "",
+            Tiles::Workgroup => include_str!("../../shaders/tile_workgroup.wgsl"),
+            Tiles::Uniform => include_str!("../../shaders/tile_uniform.wgsl"),
+        };
+        let gather = if self.is_gather() {
+            include_str!("../../shaders/gather.wgsl")
+        } else {
+            ""
+        };
+        format!("{COMMON_WGSL}\n{gather}\n{own}\n{tile}")
     }
 
-    /// The bindings after `params`: (uniform chunk?, storage read-only count, read-write count).
-    fn bindings(self) -> (bool, u32, u32) {
+    /// The storage bindings after `params` and (gather passes) the tiled records at
+    /// binding 1: (read-only count, read-write count).
+    fn bindings(self) -> (u32, u32) {
         match self {
-            Pass::Forward | Pass::BackwardNormal => (true, 1, 1),
-            Pass::BackwardTexel => (true, 1, 2),
-            Pass::ReduceCtrl => (false, 1, 1),
+            Pass::Forward | Pass::BackwardNormal => (1, 1),
+            Pass::BackwardTexel => (1, 2),
+            Pass::ReduceCtrl | Pass::ReduceSlices => (1, 1),
         }
     }
 }
@@ -88,22 +126,29 @@ fn buffer_entry(
 }
 
 impl Pipeline {
-    /// Compiles `pass` on `device`.
-    pub fn new(device: &wgpu::Device, pass: Pass) -> Self {
-        let (chunk, ro, rw) = pass.bindings();
-        let mut entries = vec![buffer_entry(
-            0,
-            wgpu::BufferBindingType::Uniform,
-            true,
-            size_of::<Params>() as u64,
-        )];
-        if chunk {
-            entries.push(buffer_entry(
-                1,
-                wgpu::BufferBindingType::Uniform,
-                true,
-                CHUNK_BYTES,
-            ));
+    /// Compiles `pass` on `device`, its records read through `tiles`.
+    pub fn new(device: &wgpu::Device, pass: Pass, tiles: Tiles) -> Self {
+        let (ro, rw) = pass.bindings();
+        // the params: on workgroup tiles an array of scenes (a batch in z) in storage
+        let params = match tiles {
+            Tiles::Workgroup if pass.is_gather() => {
+                wgpu::BufferBindingType::Storage { read_only: true }
+            }
+            _ => wgpu::BufferBindingType::Uniform,
+        };
+        let mut entries = vec![buffer_entry(0, params, true, size_of::<Params>() as u64)];
+        if pass.is_gather() {
+            entries.push(match tiles {
+                Tiles::Workgroup => buffer_entry(
+                    1,
+                    wgpu::BufferBindingType::Storage { read_only: true },
+                    false,
+                    0,
+                ),
+                Tiles::Uniform => {
+                    buffer_entry(1, wgpu::BufferBindingType::Uniform, false, CHUNK_BYTES)
+                }
+            });
         }
         for _ in 0..ro {
             let b = entries.len() as u32;
@@ -134,7 +179,7 @@ impl Pipeline {
         });
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some(pass.name()),
-            source: wgpu::ShaderSource::Wgsl(pass.source().into()),
+            source: wgpu::ShaderSource::Wgsl(pass.source(tiles).into()),
         });
         let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
             label: Some(pass.name()),
