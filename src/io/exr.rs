@@ -135,9 +135,9 @@ fn compression_code(c: Compression) -> u8 {
     }
 }
 
-/// Reads the headers of an EXR file held in `bytes` (no pixels). Errors if a layer uses a
-/// compression the decoder lacks.
-fn headers(path: &Path, bytes: &[u8]) -> Result<Vec<LayerInfo>> {
+/// Reads the headers of an EXR file held in `bytes` (no pixels), as the `exr` crate has them
+/// and as [`LayerInfo`]s. Errors if a layer uses a compression the decoder lacks.
+fn headers(path: &Path, bytes: &[u8]) -> Result<(MetaData, Vec<LayerInfo>)> {
     if let Some(code) = raw_compression_code(bytes)
         && !compression_supported(code)
     {
@@ -165,20 +165,24 @@ fn headers(path: &Path, bytes: &[u8]) -> Result<Vec<LayerInfo>> {
             deep: h.deep,
         });
     }
-    Ok(layers)
+    Ok((meta, layers))
 }
 
 /// The layers of an EXR file, from its headers alone.
 pub fn read_info(path: &Path) -> Result<Vec<LayerInfo>> {
     let bytes = super::read_bytes(path)?;
-    headers(path, &bytes)
+    Ok(headers(path, &bytes)?.1)
 }
 
 /// Reads channels R, G, B of the first layer of an EXR file as a raster (row 0 at the
 /// top). A layer named like `diffuse` with channels `diffuse.R` ... is accepted too.
 pub fn read_rgb(path: &Path) -> Result<Raster> {
-    let bytes = super::read_bytes(path)?;
-    let layers = headers(path, &bytes)?;
+    decode_rgb(path, &super::read_bytes(path)?)
+}
+
+/// [`read_rgb`] on a file's bytes; `path` names the file in errors.
+pub fn decode_rgb(path: &Path, bytes: &[u8]) -> Result<Raster> {
+    let (_, layers) = headers(path, bytes)?;
     let Some(first) = layers.first() else {
         return Err(Error::file(path, "the EXR file has no layers"));
     };
@@ -203,7 +207,7 @@ pub fn read_rgb(path: &Path) -> Result<Raster> {
         .all_channels()
         .first_valid_layer()
         .all_attributes()
-        .from_buffered(Cursor::new(&bytes[..]))
+        .from_buffered(Cursor::new(bytes))
         .map_err(|e| Error::file(path, format!("cannot decode the EXR pixels: {e}")))?;
     let layer = &image.layer_data;
     let (width, height) = (layer.size.width(), layer.size.height());

@@ -284,7 +284,7 @@ pub fn describe(path: &Path) -> Result<String> {
                         .count();
                     let _ = writeln!(out, "transparent pixels (alpha 0): {clear}");
                 }
-                let (width, height, raw) = super::png::read_normals(path)?;
+                let (width, height, raw) = super::png::normals_of(path, &d)?;
                 describe_raster(
                     &mut out,
                     &Raster {

@@ -135,11 +135,15 @@ impl Decoded {
 
 /// Decodes a PNG file (palette and low bit depths expanded to 8 bits).
 pub fn decode(path: &Path) -> Result<Decoded> {
-    let bytes = super::read_bytes(path)?;
+    decode_bytes(path, &super::read_bytes(path)?)
+}
+
+/// [`decode`] on a file's bytes; `path` names the file in errors.
+pub fn decode_bytes(path: &Path, bytes: &[u8]) -> Result<Decoded> {
     let bad = |e: png::DecodingError| Error::file(path, format!("not a readable PNG file: {e}"));
     // The default 64 MiB limit refuses 16-bit RGBA maps above ~2800 x 2800; allow 1 GiB.
     let limits = png::Limits { bytes: 1 << 30 };
-    let mut dec = png::Decoder::new_with_limits(Cursor::new(&bytes[..]), limits);
+    let mut dec = png::Decoder::new_with_limits(Cursor::new(bytes), limits);
     dec.set_transformations(png::Transformations::EXPAND);
     let mut reader = dec.read_info().map_err(bad)?;
     let size = reader
@@ -177,7 +181,11 @@ pub fn decode(path: &Path) -> Result<Decoded> {
 /// Reads a PNG normal map: n = 2 v / max - 1 per channel, background (returned as
 /// [0, 0, 0]) where alpha is 0 or R = G = B = 0. Normals are not yet normalised.
 pub fn read_normals(path: &Path) -> Result<(usize, usize, Vec<[f64; 3]>)> {
-    let d = decode(path)?;
+    normals_of(path, &decode(path)?)
+}
+
+/// [`read_normals`] on a decoded PNG; `path` names the file in errors.
+pub fn normals_of(path: &Path, d: &Decoded) -> Result<(usize, usize, Vec<[f64; 3]>)> {
     if d.channels < 3 {
         return Err(Error::file(
             path,
