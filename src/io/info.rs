@@ -311,6 +311,7 @@ fn describe_json(out: &mut String, path: &Path, bytes: &[u8]) {
     let value: serde_json::Value = match serde_json::from_slice(bytes) {
         Ok(v) => v,
         Err(e) => {
+            let e = crate::error::one_line(&e.to_string()).into_owned();
             let _ = writeln!(out, "format: JSON (invalid)\ncannot be used: {e}");
             return;
         }
@@ -366,7 +367,7 @@ fn describe_json(out: &mut String, path: &Path, bytes: &[u8]) {
 
 fn file_message(e: &Error) -> String {
     match e {
-        Error::File { message, .. } => message.clone(),
+        Error::File { message, .. } => crate::error::one_line(message).into_owned(),
         other => other.to_string(),
     }
 }

@@ -182,8 +182,15 @@ fn normalise(path: &Path, width: usize, raw: &[[f64; 3]]) -> Result<Vec<[f32; 3]
             let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
             if len < BACKGROUND_EPS {
                 [0.0; 3]
-            } else {
+            } else if len.is_finite() {
                 n.map(|v| (v / len) as f32)
+            } else {
+                // components beyond 1e154 (float64 files): the squares overflow, so
+                // normalise the vector divided by its largest component
+                let big = n.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+                let s = n.map(|v| v / big);
+                let len = (s[0] * s[0] + s[1] * s[1] + s[2] * s[2]).sqrt();
+                s.map(|v| (v / len) as f32)
             }
         })
         .collect())
@@ -250,7 +257,7 @@ pub fn env_from_bytes(path: &Path, bytes: &[u8], convention: Convention) -> Resu
         return Err(Error::file(
             path,
             format!(
-                "texel (row {}, column {}) channel {} is {}, above the largest radiance accepted ({MAX_RADIANCE})",
+                "texel (row {}, column {}) channel {} is {:e}, above the largest radiance accepted ({MAX_RADIANCE:e})",
                 i / r.width,
                 i % r.width,
                 CHANNELS[c],
@@ -285,18 +292,7 @@ pub fn load_image(path: &Path) -> Result<Image> {
         (d.width, d.height, pixels)
     } else {
         let r = read_raster(path, "an image")?;
-        if let Some((i, c, what)) = first_non_finite(&r.pixels) {
-            return Err(Error::file(
-                path,
-                format!(
-                    "pixel (column {}, row {}) channel {} is {what}",
-                    i % r.width,
-                    i / r.width,
-                    CHANNELS[c]
-                ),
-            ));
-        }
-        let pixels = r.pixels.iter().map(|p| p.map(|v| v as f32)).collect();
+        let pixels = to_f32(path, &r, |c, row| format!("pixel (column {c}, row {row})"))?;
         (r.width, r.height, pixels)
     };
     Ok(Image {
@@ -379,7 +375,7 @@ fn to_f32(path: &Path, r: &Raster, at: impl Fn(usize, usize) -> String) -> Resul
         return Err(bad(
             i,
             c,
-            format!("{}, beyond float32 range", r.pixels[i][c]),
+            format!("{:e}, beyond float32 range", r.pixels[i][c]),
         ));
     }
     Ok(r.pixels.iter().map(|p| p.map(|v| v as f32)).collect())
