@@ -9,11 +9,11 @@ use std::path::PathBuf;
 pub enum Error {
     /// An input (normals, environment map, material, camera, upstream gradient) is invalid.
     /// The string names the input and the item, e.g. `normals: pixel (12, 40) is NaN`.
-    #[error("{0}")]
+    #[error("{}", one_line(.0))]
     Invalid(String),
 
     /// The inputs of a batch disagree with each other (sizes, camera, convention).
-    #[error("batch: {0}")]
+    #[error("batch: {}", one_line(.0))]
     Batch(String),
 
     /// No GPU adapter could be found.
@@ -32,7 +32,7 @@ pub enum Error {
 
     /// A file could not be read, written or understood. The message names the file, the
     /// item and what is wrong.
-    #[error("{}: {message}", path.display())]
+    #[error("{}: {}", one_line(&path.display().to_string()), one_line(message))]
     File {
         /// The file.
         path: PathBuf,
@@ -58,6 +58,24 @@ impl Error {
             Error::Invalid(_) | Error::Batch(_) | Error::File { .. }
         )
     }
+}
+
+/// `s` with its control characters escaped (a newline as `\n`), so that a message quoting
+/// the user's text (a key of a JSON file, a file name) stays one line.
+pub(crate) fn one_line(s: &str) -> std::borrow::Cow<'_, str> {
+    if !s.chars().any(char::is_control) {
+        return s.into();
+    }
+    s.chars()
+        .map(|c| {
+            if c.is_control() {
+                c.escape_default().to_string()
+            } else {
+                c.to_string()
+            }
+        })
+        .collect::<String>()
+        .into()
 }
 
 /// `Result` with [`Error`].

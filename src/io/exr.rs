@@ -135,9 +135,9 @@ fn compression_code(c: Compression) -> u8 {
     }
 }
 
-/// Reads the headers of an EXR file held in `bytes` (no pixels). Errors if a layer uses a
-/// compression the decoder lacks.
-fn headers(path: &Path, bytes: &[u8]) -> Result<Vec<LayerInfo>> {
+/// Reads the headers of an EXR file held in `bytes` (no pixels), as the `exr` crate has them
+/// and as [`LayerInfo`]s. Errors if a layer uses a compression the decoder lacks.
+fn headers(path: &Path, bytes: &[u8]) -> Result<(MetaData, Vec<LayerInfo>)> {
     if let Some(code) = raw_compression_code(bytes)
         && !compression_supported(code)
     {
@@ -165,45 +165,94 @@ fn headers(path: &Path, bytes: &[u8]) -> Result<Vec<LayerInfo>> {
             deep: h.deep,
         });
     }
-    Ok(layers)
+    Ok((meta, layers))
 }
 
 /// The layers of an EXR file, from its headers alone.
 pub fn read_info(path: &Path) -> Result<Vec<LayerInfo>> {
     let bytes = super::read_bytes(path)?;
-    headers(path, &bytes)
+    Ok(headers(path, &bytes)?.1)
 }
 
 /// Reads channels R, G, B of the first layer of an EXR file as a raster (row 0 at the
 /// top). A layer named like `diffuse` with channels `diffuse.R` ... is accepted too.
 pub fn read_rgb(path: &Path) -> Result<Raster> {
-    let bytes = super::read_bytes(path)?;
-    let layers = headers(path, &bytes)?;
-    let Some(first) = layers.first() else {
-        return Err(Error::file(path, "the EXR file has no layers"));
-    };
-    if first.width.saturating_mul(first.height) > MAX_PIXELS {
+    decode_rgb(path, &super::read_bytes(path)?)
+}
+
+/// The most decoded bytes one byte of a file can hold under compression `code`: a bound
+/// on the compressors' ratios, so that a header's size can be checked against the file's
+/// before anything is allocated for it. NONE stores samples as they are; RLE codes at
+/// most 127 bytes in 2; zlib (ZIPS, ZIP, and PXR24 after dropping a quarter of each
+/// float32) at most 1032 bytes in 1, PIZ's Huffman coding less; B44 and B44A 32 bytes in
+/// 3 at best; DWA keeps at least one zlib-coded 2-byte DC value per 8 x 8 block of halves
+/// (64 x 1032), doubled for its other streams' slack.
+fn max_expansion(code: u8) -> u64 {
+    match code {
+        0 => 1,
+        1 => 64,
+        2..=4 => 1032,
+        5 => 1376,
+        6 | 7 => 11,
+        _ => 2 * 64 * 1032,
+    }
+}
+
+/// Checks the first layer's size against the limit and against what `file_len` bytes in
+/// its compression can hold, before the decoder allocates its samples (every channel at
+/// the layer's size: the `exr` crate refuses subsampled channels).
+fn check_size(path: &Path, header: &exr::meta::header::Header, file_len: usize) -> Result<()> {
+    let (w, h) = (header.layer_size.width(), header.layer_size.height());
+    if w.saturating_mul(h) > MAX_PIXELS {
         return Err(Error::file(
             path,
             format!(
-                "the EXR image is {} wide x {} high, more than matedit reads ({MAX_PIXELS} pixels)",
-                first.width, first.height
+                "the EXR image is {w} wide x {h} high, more than matedit reads ({MAX_PIXELS} pixels)"
             ),
         ));
     }
+    let list = &header.channels.list;
+    let per_pixel: u64 = list
+        .iter()
+        .map(|c| c.sample_type.bytes_per_sample() as u64)
+        .sum();
+    let stored = (w as u64 * h as u64).saturating_mul(per_pixel);
+    let code = compression_code(header.compression);
+    let most = (file_len as u64).saturating_mul(max_expansion(code));
+    if stored > most {
+        return Err(Error::file(
+            path,
+            format!(
+                "the EXR header claims {w} wide x {h} high x {} channels ({stored} bytes of \
+                 samples), more than a {file_len}-byte file in {} compression can hold",
+                list.len(),
+                compression_name(code)
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// [`read_rgb`] on a file's bytes; `path` names the file in errors.
+pub fn decode_rgb(path: &Path, bytes: &[u8]) -> Result<Raster> {
+    let (meta, layers) = headers(path, bytes)?;
+    let (Some(first), Some(header)) = (layers.first(), meta.headers.first()) else {
+        return Err(Error::file(path, "the EXR file has no layers"));
+    };
     if first.deep {
         return Err(Error::file(
             path,
             "the EXR file holds deep data; matedit reads flat images",
         ));
     }
+    check_size(path, header, bytes.len())?;
     let image = read()
         .no_deep_data()
         .largest_resolution_level()
         .all_channels()
         .first_valid_layer()
         .all_attributes()
-        .from_buffered(Cursor::new(&bytes[..]))
+        .from_buffered(Cursor::new(bytes))
         .map_err(|e| Error::file(path, format!("cannot decode the EXR pixels: {e}")))?;
     let layer = &image.layer_data;
     let (width, height) = (layer.size.width(), layer.size.height());

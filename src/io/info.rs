@@ -284,7 +284,7 @@ pub fn describe(path: &Path) -> Result<String> {
                         .count();
                     let _ = writeln!(out, "transparent pixels (alpha 0): {clear}");
                 }
-                let (width, height, raw) = super::png::read_normals(path)?;
+                let (width, height, raw) = super::png::normals_of(path, &d)?;
                 describe_raster(
                     &mut out,
                     &Raster {
@@ -311,6 +311,7 @@ fn describe_json(out: &mut String, path: &Path, bytes: &[u8]) {
     let value: serde_json::Value = match serde_json::from_slice(bytes) {
         Ok(v) => v,
         Err(e) => {
+            let e = crate::error::one_line(&e.to_string()).into_owned();
             let _ = writeln!(out, "format: JSON (invalid)\ncannot be used: {e}");
             return;
         }
@@ -366,7 +367,7 @@ fn describe_json(out: &mut String, path: &Path, bytes: &[u8]) {
 
 fn file_message(e: &Error) -> String {
     match e {
-        Error::File { message, .. } => message.clone(),
+        Error::File { message, .. } => crate::error::one_line(message).into_owned(),
         other => other.to_string(),
     }
 }

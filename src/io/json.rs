@@ -82,8 +82,13 @@ pub fn material_from_ctrl(name: String, ctrl: &[f64]) -> std::result::Result<Mat
 
 /// Reads a material JSON file.
 pub fn read_material(path: &Path) -> Result<Material> {
-    let bytes = super::read_bytes(path)?;
-    let file: MaterialFile = serde_json::from_slice(&bytes)
+    parse_material(path, &super::read_bytes(path)?)
+}
+
+/// [`read_material`] on a file's bytes; `path` names the file in errors and, where the
+/// file has no name, the material.
+pub fn parse_material(path: &Path, bytes: &[u8]) -> Result<Material> {
+    let file: MaterialFile = serde_json::from_slice(bytes)
         .map_err(|e| Error::file(path, format!("not a material file: {e}")))?;
     let name = file.name.unwrap_or_else(|| {
         path.file_stem()

@@ -88,8 +88,13 @@ fn resolve(base: &Path, p: PathBuf) -> PathBuf {
 /// Reads and validates a manifest. Relative inputs resolve against the manifest's folder;
 /// relative outputs against `output_dir` if given, else the manifest's folder.
 pub fn read(path: &Path, output_dir: Option<&Path>) -> Result<Manifest> {
-    let bytes = super::read_bytes(path)?;
-    let file: ManifestFile = serde_json::from_slice(&bytes)
+    parse(path, &super::read_bytes(path)?, output_dir)
+}
+
+/// [`read`] on a file's bytes; `path` names the file in errors and is where relative paths
+/// resolve from.
+pub fn parse(path: &Path, bytes: &[u8], output_dir: Option<&Path>) -> Result<Manifest> {
+    let file: ManifestFile = serde_json::from_slice(bytes)
         .map_err(|e| Error::file(path, format!("not a valid manifest: {e}")))?;
     let err = |m: String| Error::file(path, m);
     // An empty parent (a manifest in the current folder) leaves relative paths as they are.

@@ -108,11 +108,26 @@ pub(crate) fn read_bytes(path: &Path) -> Result<Vec<u8>> {
     })
 }
 
+/// Reads a whole file whose extension is one of `allowed` (checked first).
+fn read_as(path: &Path, what: &str, allowed: &[Format]) -> Result<Vec<u8>> {
+    format_of(path, what, allowed)?;
+    read_bytes(path)
+}
+
+const RASTERS: &[Format] = &[Format::Exr, Format::Npy];
+const IMAGES: &[Format] = &[Format::Exr, Format::Npy, Format::Png];
+
 /// Reads an H x W x 3 float raster from an EXR or NPY file.
 pub fn read_raster(path: &Path, what: &str) -> Result<Raster> {
-    match format_of(path, what, &[Format::Exr, Format::Npy])? {
-        Format::Exr => exr::read_rgb(path),
-        _ => npy_raster(path, npy::read(path)?),
+    raster_from_bytes(path, &read_as(path, what, RASTERS)?, what)
+}
+
+/// [`read_raster`] on a file's bytes: `path` names the file in errors and its extension
+/// says the format.
+pub fn raster_from_bytes(path: &Path, bytes: &[u8], what: &str) -> Result<Raster> {
+    match format_of(path, what, RASTERS)? {
+        Format::Exr => exr::decode_rgb(path, bytes),
+        _ => npy_raster(path, npy::parse(bytes).map_err(|m| Error::file(path, m))?),
     }
 }
 
@@ -167,8 +182,15 @@ fn normalise(path: &Path, width: usize, raw: &[[f64; 3]]) -> Result<Vec<[f32; 3]
             let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
             if len < BACKGROUND_EPS {
                 [0.0; 3]
-            } else {
+            } else if len.is_finite() {
                 n.map(|v| (v / len) as f32)
+            } else {
+                // components beyond 1e154 (float64 files): the squares overflow, so
+                // normalise the vector divided by its largest component
+                let big = n.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+                let s = n.map(|v| v / big);
+                let len = (s[0] * s[0] + s[1] * s[1] + s[2] * s[2]).sqrt();
+                s.map(|v| (v / len) as f32)
             }
         })
         .collect())
@@ -177,15 +199,16 @@ fn normalise(path: &Path, width: usize, raw: &[[f64; 3]]) -> Result<Vec<[f32; 3]
 /// Loads a normal map (EXR, NPY or PNG): channels (n.x, n.y, n.z), normalised, background
 /// where |n| < 1e-6 (and, in PNG files, where alpha is 0 or R = G = B = 0).
 pub fn load_normals(path: &Path) -> Result<NormalMap> {
-    let format = format_of(
-        path,
-        "a normal map",
-        &[Format::Exr, Format::Npy, Format::Png],
-    )?;
-    let (width, height, raw) = match format {
-        Format::Png => png::read_normals(path)?,
+    normals_from_bytes(path, &read_as(path, "a normal map", IMAGES)?)
+}
+
+/// [`load_normals`] on a file's bytes: `path` names the file in errors and its extension
+/// says the format.
+pub fn normals_from_bytes(path: &Path, bytes: &[u8]) -> Result<NormalMap> {
+    let (width, height, raw) = match format_of(path, "a normal map", IMAGES)? {
+        Format::Png => png::normals_of(path, &png::decode_bytes(path, bytes)?)?,
         _ => {
-            let r = read_raster(path, "a normal map")?;
+            let r = raster_from_bytes(path, bytes, "a normal map")?;
             (r.width, r.height, r.pixels)
         }
     };
@@ -205,7 +228,14 @@ pub struct LoadedEnv {
 /// Loads a lat-long environment map (EXR or NPY, row 0 = top) under `convention`.
 /// Negative values are clamped to 0 and counted; NaN, infinite or huge values are errors.
 pub fn load_env(path: &Path, convention: Convention) -> Result<LoadedEnv> {
-    let r = read_raster(path, "an environment map")?;
+    let what = "an environment map";
+    env_from_bytes(path, &read_as(path, what, RASTERS)?, convention)
+}
+
+/// [`load_env`] on a file's bytes: `path` names the file in errors and its extension says
+/// the format.
+pub fn env_from_bytes(path: &Path, bytes: &[u8], convention: Convention) -> Result<LoadedEnv> {
+    let r = raster_from_bytes(path, bytes, "an environment map")?;
     if let Some((i, c, what)) = first_non_finite(&r.pixels) {
         return Err(Error::file(
             path,
@@ -227,7 +257,7 @@ pub fn load_env(path: &Path, convention: Convention) -> Result<LoadedEnv> {
         return Err(Error::file(
             path,
             format!(
-                "texel (row {}, column {}) channel {} is {}, above the largest radiance accepted ({MAX_RADIANCE})",
+                "texel (row {}, column {}) channel {} is {:e}, above the largest radiance accepted ({MAX_RADIANCE:e})",
                 i / r.width,
                 i % r.width,
                 CHANNELS[c],
@@ -243,7 +273,7 @@ pub fn load_env(path: &Path, convention: Convention) -> Result<LoadedEnv> {
 /// Loads an image to fit to: EXR or NPY (linear RGB, H x W x 3, every value finite) or PNG
 /// (8 or 16 bits, sRGB-decoded to linear; grey is replicated, alpha ignored).
 pub fn load_image(path: &Path) -> Result<Image> {
-    let format = format_of(path, "an image", &[Format::Exr, Format::Npy, Format::Png])?;
+    let format = format_of(path, "an image", IMAGES)?;
     let (width, height, pixels) = if format == Format::Png {
         let d = png::decode(path)?;
         let max = d.max_value();
@@ -262,18 +292,7 @@ pub fn load_image(path: &Path) -> Result<Image> {
         (d.width, d.height, pixels)
     } else {
         let r = read_raster(path, "an image")?;
-        if let Some((i, c, what)) = first_non_finite(&r.pixels) {
-            return Err(Error::file(
-                path,
-                format!(
-                    "pixel (column {}, row {}) channel {} is {what}",
-                    i % r.width,
-                    i / r.width,
-                    CHANNELS[c]
-                ),
-            ));
-        }
-        let pixels = r.pixels.iter().map(|p| p.map(|v| v as f32)).collect();
+        let pixels = to_f32(path, &r, |c, row| format!("pixel (column {c}, row {row})"))?;
         (r.width, r.height, pixels)
     };
     Ok(Image {
@@ -286,7 +305,7 @@ pub fn load_image(path: &Path) -> Result<Image> {
 /// Loads a mask (EXR, NPY or PNG, any channels): a pixel counts where its first channel is
 /// above half (PNG: half the largest sample; EXR and NPY: 0.5).
 pub fn load_mask(path: &Path) -> Result<(usize, usize, Vec<bool>)> {
-    let format = format_of(path, "a mask", &[Format::Exr, Format::Npy, Format::Png])?;
+    let format = format_of(path, "a mask", IMAGES)?;
     if format == Format::Png {
         let d = png::decode(path)?;
         let half = d.max_value() / 2.0;
@@ -331,38 +350,35 @@ pub fn load_mask(path: &Path) -> Result<(usize, usize, Vec<bool>)> {
 /// Loads an upstream gradient dLoss/dImage (EXR or NPY, H x W x 3, every value finite).
 pub fn load_upstream(path: &Path) -> Result<Image> {
     let r = read_raster(path, "an upstream gradient")?;
+    Ok(Image {
+        width: r.width,
+        height: r.height,
+        pixels: to_f32(path, &r, |c, row| format!("pixel ({c}, {row})"))?,
+    })
+}
+
+/// A raster's values in float32; the error names the first value that is not finite or is
+/// beyond float32's range (float64 files), with the pixel as `at(column, row)` writes it.
+fn to_f32(path: &Path, r: &Raster, at: impl Fn(usize, usize) -> String) -> Result<Vec<[f32; 3]>> {
+    let bad = |i: usize, c: usize, why: String| {
+        let at = at(i % r.width, i / r.width);
+        Error::file(path, format!("{at} channel {} is {why}", CHANNELS[c]))
+    };
     if let Some((i, c, what)) = first_non_finite(&r.pixels) {
-        return Err(Error::file(
-            path,
-            format!(
-                "pixel ({}, {}) channel {} is {what}",
-                i % r.width,
-                i / r.width,
-                CHANNELS[c]
-            ),
-        ));
+        return Err(bad(i, c, what.to_string()));
     }
     if let Some((i, c)) = r.pixels.iter().enumerate().find_map(|(i, p)| {
         p.iter()
             .position(|v| v.abs() > f32::MAX as f64)
             .map(|c| (i, c))
     }) {
-        return Err(Error::file(
-            path,
-            format!(
-                "pixel ({}, {}) channel {} is {}, beyond float32 range",
-                i % r.width,
-                i / r.width,
-                CHANNELS[c],
-                r.pixels[i][c]
-            ),
+        return Err(bad(
+            i,
+            c,
+            format!("{:e}, beyond float32 range", r.pixels[i][c]),
         ));
     }
-    Ok(Image {
-        width: r.width,
-        height: r.height,
-        pixels: r.pixels.iter().map(|p| p.map(|v| v as f32)).collect(),
-    })
+    Ok(r.pixels.iter().map(|p| p.map(|v| v as f32)).collect())
 }
 
 /// Loads a material JSON file (`{"name": ..., "ctrl": [108 numbers]}`).

@@ -12,6 +12,10 @@ use crate::error::{Error, Result};
 
 const MAGIC: &[u8] = b"\x93NUMPY";
 
+/// Most axes a shape may have (NumPy's own limit is 32, 64 since NumPy 2): reordering a
+/// Fortran-order array costs a pass over the axes per element.
+const MAX_DIMS: usize = 64;
+
 /// The element types the reader understands.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Dtype {
@@ -200,6 +204,12 @@ fn parse_header(bytes: &[u8]) -> std::result::Result<Header, String> {
                 .map_err(|_| format!("header 'shape' {shape_text} is not a tuple of sizes"))
         })
         .collect::<std::result::Result<Vec<_>, _>>()?;
+    if shape.len() > MAX_DIMS {
+        return Err(format!(
+            "header 'shape' has {} axes; NumPy writes at most {MAX_DIMS}",
+            shape.len()
+        ));
+    }
     Ok(Header {
         dtype,
         big_endian,

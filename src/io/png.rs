@@ -135,13 +135,41 @@ impl Decoded {
 
 /// Decodes a PNG file (palette and low bit depths expanded to 8 bits).
 pub fn decode(path: &Path) -> Result<Decoded> {
-    let bytes = super::read_bytes(path)?;
+    decode_bytes(path, &super::read_bytes(path)?)
+}
+
+/// The most bytes zlib can inflate one byte to (a 258-byte match in 2 bits).
+const MAX_INFLATE: u64 = 1032;
+
+/// [`decode`] on a file's bytes; `path` names the file in errors.
+pub fn decode_bytes(path: &Path, bytes: &[u8]) -> Result<Decoded> {
     let bad = |e: png::DecodingError| Error::file(path, format!("not a readable PNG file: {e}"));
     // The default 64 MiB limit refuses 16-bit RGBA maps above ~2800 x 2800; allow 1 GiB.
     let limits = png::Limits { bytes: 1 << 30 };
-    let mut dec = png::Decoder::new_with_limits(Cursor::new(&bytes[..]), limits);
+    let mut dec = png::Decoder::new_with_limits(Cursor::new(bytes), limits);
     dec.set_transformations(png::Transformations::EXPAND);
     let mut reader = dec.read_info().map_err(bad)?;
+    // The pixels are zlib data inside the file: a header that claims more than the file's
+    // bytes can inflate to is refused before the image buffer is allocated.
+    let info = reader.info();
+    let bits = [
+        info.color_type.samples() as u64,
+        info.bit_depth as u64,
+        u64::from(info.height),
+    ]
+    .into_iter()
+    .fold(u64::from(info.width), u64::saturating_mul);
+    if bits / 8 > bytes.len() as u64 * MAX_INFLATE {
+        return Err(Error::file(
+            path,
+            format!(
+                "the PNG header claims {} wide x {} high, more than a {}-byte file can hold",
+                info.width,
+                info.height,
+                bytes.len()
+            ),
+        ));
+    }
     let size = reader
         .output_buffer_size()
         .ok_or_else(|| Error::file(path, "PNG image is too large"))?;
@@ -177,7 +205,11 @@ pub fn decode(path: &Path) -> Result<Decoded> {
 /// Reads a PNG normal map: n = 2 v / max - 1 per channel, background (returned as
 /// [0, 0, 0]) where alpha is 0 or R = G = B = 0. Normals are not yet normalised.
 pub fn read_normals(path: &Path) -> Result<(usize, usize, Vec<[f64; 3]>)> {
-    let d = decode(path)?;
+    normals_of(path, &decode(path)?)
+}
+
+/// [`read_normals`] on a decoded PNG; `path` names the file in errors.
+pub fn normals_of(path: &Path, d: &Decoded) -> Result<(usize, usize, Vec<[f64; 3]>)> {
     if d.channels < 3 {
         return Err(Error::file(
             path,
