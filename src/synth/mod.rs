@@ -316,7 +316,7 @@ pub fn render_chunk(
 ) -> Result<Vec<u8>> {
     let first = c * spec.chunk_size;
     let width = tar::key_width(spec.count);
-    let one = |k: u64| -> Result<(String, Vec<(&'static str, Vec<u8>)>)> {
+    let one = |k: u64| -> Result<tar::Keyed> {
         let sample = spec.sample(k)?;
         let batch = Batch::single(sample.scene.clone())
             .map_err(|e| Error::Invalid(format!("sample {k}: {e}")))?;

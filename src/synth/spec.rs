@@ -103,7 +103,7 @@ pub struct EnvSource {
 #[derive(Clone, Debug)]
 pub enum MaterialSource {
     /// A fixed material: a preset or a file, with what the sample records of it.
-    Fixed(Material, Value),
+    Fixed(Box<Material>, Value),
     /// A random convex combination of `mix` distinct fitted MERL presets, weights uniform
     /// on the simplex.
     RandomMerl {
@@ -589,7 +589,7 @@ impl Spec {
                             "unknown preset '{name}'; `matedit presets` lists them"
                         ))
                     })?;
-                    MaterialSource::Fixed(m, json!({ "preset": name }))
+                    MaterialSource::Fixed(Box::new(m), json!({ "preset": name }))
                 }
                 1 => {
                     let label = r.file.unwrap_or_default();
@@ -600,7 +600,7 @@ impl Spec {
                     };
                     let m = crate::io::load_material(&f.path).map_err(|e| at(e.to_string()))?;
                     hash_file(&mut hasher, &f.label, &f.path).map_err(|e| at(e.to_string()))?;
-                    MaterialSource::Fixed(m, json!({ "file": label }))
+                    MaterialSource::Fixed(Box::new(m), json!({ "file": label }))
                 }
                 _ => {
                     let what = r.random.unwrap_or_default();
@@ -685,7 +685,7 @@ impl Spec {
 
         let mi = pick(&mut rng, &self.materials);
         let (material, mparams) = match &self.materials[mi].source {
-            MaterialSource::Fixed(m, p) => (m.clone(), p.clone()),
+            MaterialSource::Fixed(m, p) => (Material::clone(m), p.clone()),
             MaterialSource::RandomMerl { mix } => random_merl(&mut rng, *mix)?,
         };
 

@@ -22,8 +22,14 @@ pub fn key_width(count: u64) -> usize {
     count.saturating_sub(1).to_string().len().max(8)
 }
 
+/// A sample's members: (suffix, bytes) in [`MEMBERS`] order.
+pub type Members = Vec<(&'static str, Vec<u8>)>;
+
+/// A sample's key and members.
+pub type Keyed = (String, Members);
+
 /// The members of one rendered sample, in [`MEMBERS`] order.
-pub fn members(sample: &Sample, image: &Image, renderer: &str) -> Vec<(&'static str, Vec<u8>)> {
+pub fn members(sample: &Sample, image: &Image, renderer: &str) -> Members {
     let s = &sample.scene;
     let mut params = sample.params.clone();
     if let Some(o) = params.as_object_mut() {
@@ -53,7 +59,7 @@ pub fn members(sample: &Sample, image: &Image, renderer: &str) -> Vec<(&'static 
 }
 
 /// A tar file of `samples`, each `(key, members)`; keys ascending.
-pub fn encode(samples: &[(String, Vec<(&'static str, Vec<u8>)>)]) -> Result<Vec<u8>> {
+pub fn encode(samples: &[Keyed]) -> Result<Vec<u8>> {
     let fail = |e: std::io::Error| Error::Invalid(format!("tar: {e}"));
     let mut b = ::tar::Builder::new(Vec::new());
     b.mode(::tar::HeaderMode::Deterministic);
