@@ -366,9 +366,25 @@ pub fn run(
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Summary> {
     check(spec, dir, shard, &engine.label)?;
-    let total = spec.chunks();
     let start = Instant::now();
-    crate::io::create_dirs(dir)?;
+    let created = crate::io::create_dirs(dir)?;
+    let result = run_chunks(spec, dir, shard, engine, progress, start);
+    if result.is_err() {
+        // folders this run made and left empty go too
+        crate::io::remove_created(&created);
+    }
+    result
+}
+
+fn run_chunks(
+    spec: &Spec,
+    dir: &Path,
+    shard: Shard,
+    engine: &Engine,
+    progress: &(dyn Fn(u64) + Sync),
+    start: Instant,
+) -> Result<Summary> {
+    let total = spec.chunks();
     let mut summary = Summary {
         shard: shard.to_string(),
         chunks_total: total,
