@@ -21,6 +21,7 @@ Examples:
   matedit grad -o grads/ --upstream dloss_dimage.npy
   matedit info sky.exr
   matedit presets
+  matedit synth spec.json -o dataset/                (a dataset of rendered samples)
 
 Run `matedit help COMMAND` for a command's options and examples.";
 
