@@ -44,6 +44,7 @@ pub mod presets;
 pub mod reference;
 pub mod scene;
 pub mod spline;
+pub mod synth;
 
 pub use camera::Camera;
 pub use envmap::{Convention, EnvMap};

@@ -21,6 +21,7 @@ Examples:
   matedit grad -o grads/ --upstream dloss_dimage.npy
   matedit info sky.exr
   matedit presets
+  matedit synth spec.json -o dataset/                (a dataset of rendered samples)
 
 Run `matedit help COMMAND` for a command's options and examples.";
 
@@ -85,6 +86,21 @@ Examples:
 Row i keeps fit i's shape and light, column j brings fit j's material; the diagonal
 shows the images fitted to.";
 
+const SYNTH_EXAMPLES: &str = "\
+Examples:
+  matedit synth spec.json -o dataset/
+  matedit synth spec.json -o dataset/ --shard 3/16      (one task of an array job)
+  matedit synth spec.json -o dataset/ --verify          (after the shards: check, list all)
+
+spec.json: {\"count\": 12, \"seed\": 7, \"image_size\": 64, \"env_size\": \"32x64\",
+  \"normals\": [{\"sphere\": 64}, {\"bumpy\": 64}], \"envs\": [\"sky.exr\"],
+  \"materials\": [{\"preset\": \"gold\"}, {\"random\": \"merl\"}]}
+Writes DIR/chunk-NNNNNN.tar (WebDataset style: KEY.env.npy, KEY.image.npy,
+KEY.material.json, KEY.normals.npy, KEY.params.json per sample), a record
+chunk-NNNNNN.json beside each, and DIR/manifest.json. Sample k depends on the spec,
+its seed and k alone: any split into shards writes the same chunk files, bit for bit.
+A re-run skips the chunks already complete. See docs/synth.md.";
+
 const PRESETS_EXAMPLES: &str = "\
 Examples:
   matedit presets
@@ -126,6 +142,9 @@ enum Command {
     /// Every fit's shape and light with every fit's material, as one picture.
     #[command(after_help = GRID_EXAMPLES)]
     Grid(GridArgs),
+    /// Synthesise a dataset: samples drawn from a spec, rendered, written as tar chunks.
+    #[command(after_help = SYNTH_EXAMPLES)]
+    Synth(SynthArgs),
     /// List the built-in materials, or print one as a material JSON file.
     #[command(after_help = PRESETS_EXAMPLES)]
     Presets {
@@ -358,6 +377,27 @@ struct GradArgs {
     /// Upstream gradient dLoss/dImage, H x W x 3, .npy or .exr.
     #[arg(long, value_name = "FILE", required_unless_present = "batch")]
     upstream: Option<PathBuf>,
+}
+
+#[derive(Args)]
+struct SynthArgs {
+    /// The spec: a JSON file naming the sources, the count, the sizes and the seed (see docs/synth.md).
+    spec: PathBuf,
+    /// Output folder (created if missing).
+    #[arg(short, long, value_name = "DIR")]
+    output: PathBuf,
+    /// Write only shard I of N: the chunks c with c mod N = I (for array jobs).
+    #[arg(long, value_name = "I/N", default_value = "0/1")]
+    shard: matedit::synth::Shard,
+    /// Backend: cpu (the fast f32 SIMD path), gpu, reference or auto. The chunks' bits depend on it (and on the CPU path's instruction set, see MATEDIT_SIMD), not on the split or the thread count.
+    #[arg(long, value_name = "cpu|gpu|reference|auto", default_value = "cpu")]
+    device: Device,
+    /// Worker threads of the CPU paths [default: RAYON_NUM_THREADS, else one per core].
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u16).range(1..))]
+    threads: Option<u16>,
+    /// Render nothing: check every chunk against its record and rewrite the manifest; fails if any chunk is missing.
+    #[arg(long, conflicts_with = "shard")]
+    verify: bool,
 }
 
 fn parse_tolerance(s: &str) -> Result<f64, String> {
@@ -982,6 +1022,79 @@ fn grid(args: &GridArgs) -> Result<(), Failure> {
     Ok(())
 }
 
+fn synth(args: &SynthArgs) -> Result<(), Failure> {
+    use matedit::synth;
+    let spec = synth::Spec::load(&args.spec)?;
+    threads(args.threads);
+    let engine = synth::Engine::new(args.device)?;
+    if args.verify {
+        let v = synth::verify(&spec, &args.output, &engine.label)?;
+        eprintln!(
+            "matedit: synth: {} of {} chunks present and verified; wrote {}",
+            v.chunks_present,
+            v.chunks_total,
+            args.output.join("manifest.json").display()
+        );
+        if !v.missing.is_empty() {
+            let names: Vec<String> = v
+                .missing
+                .iter()
+                .take(8)
+                .map(|&c| synth::chunk_file(&spec, c))
+                .collect();
+            return Err(runtime(Error::file(
+                &args.output,
+                format!(
+                    "{} chunk{} missing or not matching {} record: {}{}; run the shards again",
+                    v.missing.len(),
+                    if v.missing.len() == 1 { "" } else { "s" },
+                    if v.missing.len() == 1 { "its" } else { "their" },
+                    names.join(", "),
+                    if v.missing.len() > 8 { ", ..." } else { "" }
+                ),
+            )));
+        }
+        return Ok(());
+    }
+    let shard = args.shard;
+    synth::check(&spec, &args.output, shard, &engine.label)?;
+    eprintln!("matedit: device: {}", engine.renderer.describe());
+    let mine = shard.chunks(spec.chunks()).count() as u64 * spec.chunk_size;
+    let bar = std::io::stderr().is_terminal().then(|| {
+        let bar = indicatif::ProgressBar::new(mine);
+        if let Ok(style) = indicatif::ProgressStyle::with_template(
+            "{prefix} {bar:30} {pos}/{len} samples {elapsed} (eta {eta})",
+        ) {
+            bar.set_style(style);
+        }
+        bar.set_prefix(format!("shard {shard}"));
+        bar
+    });
+    let progress = |n: u64| {
+        if let Some(b) = &bar {
+            b.inc(n);
+        }
+    };
+    let s = synth::run(&spec, &args.output, shard, &engine, &progress).map_err(runtime)?;
+    if let Some(b) = bar {
+        b.finish_and_clear();
+    }
+    eprintln!(
+        "matedit: synth: shard {}: {} samples in {:.2} s ({:.1} samples/s), {} chunk{} written, {} skipped; {} of {} chunks present in {}",
+        s.shard,
+        s.samples,
+        s.seconds,
+        s.samples_per_second(),
+        s.chunks_written,
+        if s.chunks_written == 1 { "" } else { "s" },
+        s.chunks_skipped,
+        s.chunks_present,
+        s.chunks_total,
+        args.output.display()
+    );
+    Ok(())
+}
+
 fn presets(name: Option<&str>) -> Result<(), Failure> {
     match name {
         None => {
@@ -1025,6 +1138,7 @@ fn run(cli: Cli) -> Result<(), Failure> {
         Command::Fit(args) => fit_image(&args),
         Command::Transfer(args) => transfer(&args),
         Command::Grid(args) => grid(&args),
+        Command::Synth(args) => synth(&args),
         Command::Presets { name } => presets(name.as_deref()),
     }
 }

@@ -219,6 +219,13 @@ pub fn all() -> &'static [Preset] {
     })
 }
 
+/// The fitted MERL materials alone (the presets before the hand-made ones), in the order of
+/// [`all`].
+pub fn merl() -> &'static [Preset] {
+    let all = all();
+    &all[..all.len() - HANDMADE.len()]
+}
+
 /// A name that lives as long as the presets (they are built once).
 fn leak(name: &str) -> &'static str {
     Box::leak(name.to_string().into_boxed_str())

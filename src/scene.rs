@@ -178,7 +178,7 @@ impl NormalMap {
 /// `n` / |n| in f32, chosen among the nearest f32 triples so that normalising it again in
 /// f64 and rounding to f32 (as the file loaders do) gives it back bit for bit: a map of
 /// such normals renders the same after a round trip through a file.
-fn loader_stable_unit(n: [f64; 3]) -> [f32; 3] {
+pub(crate) fn loader_stable_unit(n: [f64; 3]) -> [f32; 3] {
     let unit = |v: [f64; 3]| {
         let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
         v.map(|c| (c / len) as f32)

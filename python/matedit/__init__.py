@@ -14,6 +14,8 @@ float32; ctrl is float64 or float32. Invalid input raises ValueError with the li
 one-line message; a device failure raises RuntimeError.
 
 `matedit.torch` (imported on its own: `import matedit.torch`) has the PyTorch operator.
+`matedit.synth(spec, out_dir, shard=(i, n))` writes a dataset's shard like `matedit synth`;
+`matedit.ray.synth_ray(spec, out_dir, num_shards)` runs the shards as Ray tasks.
 """
 
 from __future__ import annotations
@@ -28,7 +30,18 @@ import numpy as np
 # a GPU on headless machines; the variable has no other use here (the CLI does the same).
 os.environ.setdefault("XDG_RUNTIME_DIR", tempfile.gettempdir())
 
-from ._matedit import Renderer, load_env, load_normals, preset, presets, sky, sphere
+from ._matedit import (
+    Renderer,
+    load_env,
+    load_normals,
+    preset,
+    presets,
+    sky,
+    sphere,
+    synth,
+    synth_check,
+    synth_verify,
+)
 
 __all__ = [
     "Renderer",
@@ -41,6 +54,9 @@ __all__ = [
     "load_normals",
     "sphere",
     "sky",
+    "synth",
+    "synth_check",
+    "synth_verify",
 ]
 
 _lock = threading.Lock()

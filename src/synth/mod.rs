@@ -1,0 +1,516 @@
+//! Dataset synthesis: many rendered samples drawn from a spec ([`Spec`]), written as
+//! WebDataset-style tar chunks that any split of the work writes bit for bit alike.
+//!
+//! Sample `k` is a pure function of (spec, seed, k) ([`Spec::sample`]); samples are grouped
+//! by index into chunks of `chunk_size`; shard `I/N` ([`Shard`]) writes the chunks
+//! `c` with `c mod N == I`. Each chunk is written to a temporary file in the output folder
+//! and renamed into place, then its record (`chunk-NNNNNN.json`: first sample, count,
+//! size, SHA-256, the spec's digest and the renderer) likewise; a run skips a chunk whose
+//! tar matches its record, so a killed run resumes where it stopped. `manifest.json` lists
+//! the chunks present; each run rewrites it atomically at its end (shards running at once
+//! each list what they see: the last to finish, or [`verify`], lists all).
+//!
+//! docs/synth.md describes the spec, the files and how to run shards on Slurm, Kubernetes
+//! and Ray.
+
+pub mod spec;
+pub mod tar;
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+
+use crate::error::{Error, Result};
+use crate::scene::Batch;
+use crate::{Device, Renderer};
+
+pub use spec::{Sample, Spec};
+
+/// The `format` of `manifest.json` and of the chunk records.
+pub const FORMAT: &str = "matedit-synth 1";
+
+/// A part of the work: chunks `c` with `c mod count == index`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Shard {
+    /// This part, from 0.
+    pub index: u64,
+    /// How many parts.
+    pub count: u64,
+}
+
+impl Shard {
+    /// The whole dataset.
+    pub const WHOLE: Shard = Shard { index: 0, count: 1 };
+
+    /// A checked shard.
+    pub fn new(index: u64, count: u64) -> std::result::Result<Shard, String> {
+        if count == 0 {
+            return Err(format!("shard {index}/{count}: N must be at least 1"));
+        }
+        if index >= count {
+            return Err(format!(
+                "shard {index}/{count}: I must be below N (shards are numbered 0 to {})",
+                count - 1
+            ));
+        }
+        Ok(Shard { index, count })
+    }
+
+    /// The chunks of this shard among `chunks`.
+    pub fn chunks(&self, chunks: u64) -> impl Iterator<Item = u64> + use<> {
+        (self.index..chunks).step_by(self.count as usize)
+    }
+}
+
+impl std::str::FromStr for Shard {
+    type Err = String;
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        let bad = || format!("shard '{s}' is not I/N (e.g. 0/4)");
+        let (i, n) = s.split_once('/').ok_or_else(bad)?;
+        let i: u64 = i.trim().parse().map_err(|_| bad())?;
+        let n: u64 = n.trim().parse().map_err(|_| bad())?;
+        Shard::new(i, n)
+    }
+}
+
+impl std::fmt::Display for Shard {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}/{}", self.index, self.count)
+    }
+}
+
+/// A renderer and the name of what it computes: samples record it, and a chunk made by
+/// another renderer is not taken as done.
+pub struct Engine {
+    /// The renderer.
+    pub renderer: Renderer,
+    /// `cpu-avx512`, `cpu-avx2`, `cpu-neon`, `cpu-scalar`, `reference`, or the GPU's
+    /// description. The fast CPU path's bits depend on its instruction set, not on the
+    /// thread count.
+    pub label: String,
+    parallel: bool,
+}
+
+impl Engine {
+    /// The renderer for `device` (`Auto`: a hardware GPU, else the fast CPU path).
+    pub fn new(device: Device) -> Result<Engine> {
+        let cpu = || -> Result<Engine> {
+            let fast = crate::cpu::FastCpu::new()?;
+            Ok(Engine {
+                label: format!("cpu-{}", fast.level().name()),
+                renderer: Renderer::with_backend(Box::new(fast)),
+                parallel: true,
+            })
+        };
+        let gpu = |r: Renderer| Engine {
+            label: r.describe(),
+            renderer: r,
+            parallel: false,
+        };
+        Ok(match device {
+            Device::Cpu => cpu()?,
+            Device::Reference => Engine {
+                label: "reference".into(),
+                renderer: Renderer::new(Device::Reference)?,
+                parallel: true,
+            },
+            Device::Gpu => gpu(Renderer::new(Device::Gpu)?),
+            Device::Auto => match crate::gpu::GpuContext::new_hardware() {
+                Ok(ctx) => gpu(Renderer::with_backend(Box::new(
+                    crate::gpu::GpuRenderer::with_context(ctx)?,
+                ))),
+                Err(_) => cpu()?,
+            },
+        })
+    }
+}
+
+/// What a run did.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct Summary {
+    /// The shard that ran, as `I/N`.
+    pub shard: String,
+    /// Samples rendered and written.
+    pub samples: u64,
+    /// Chunks written.
+    pub chunks_written: u64,
+    /// Chunks found complete and skipped.
+    pub chunks_skipped: u64,
+    /// Seconds the run took (loading the spec excluded).
+    pub seconds: f64,
+    /// Chunks of the whole dataset.
+    pub chunks_total: u64,
+    /// Chunks the manifest written at the end lists.
+    pub chunks_present: u64,
+    /// The renderer's label.
+    pub renderer: String,
+}
+
+impl Summary {
+    /// Rendered samples per second.
+    pub fn samples_per_second(&self) -> f64 {
+        if self.seconds > 0.0 {
+            self.samples as f64 / self.seconds
+        } else {
+            0.0
+        }
+    }
+}
+
+/// What a chunk's record (`chunk-NNNNNN.json`) says.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ChunkRecord {
+    /// [`FORMAT`].
+    pub format: String,
+    /// The tar file's name.
+    pub file: String,
+    /// The chunk's index.
+    pub chunk: u64,
+    /// Its first sample.
+    pub first: u64,
+    /// Its samples.
+    pub count: u64,
+    /// The tar file's size.
+    pub bytes: u64,
+    /// The tar file's SHA-256, hex.
+    pub sha256: String,
+    /// The spec's digest ([`Spec::digest`]).
+    pub spec_sha256: String,
+    /// The renderer's label ([`Engine::label`]).
+    pub renderer: String,
+}
+
+/// The tar file of chunk `c`.
+pub fn chunk_file(spec: &Spec, c: u64) -> String {
+    let width = spec.chunks().saturating_sub(1).to_string().len().max(6);
+    format!("chunk-{c:0width$}.tar")
+}
+
+fn record_file(tar_name: &str) -> String {
+    format!("{}.json", tar_name.trim_end_matches(".tar"))
+}
+
+fn sha256_hex(bytes: &[u8]) -> String {
+    spec::hex(&Sha256::digest(bytes))
+}
+
+/// The record of chunk `c` in `dir` if it belongs to this spec and renderer, and with
+/// `hash` its tar's size and checksum match it.
+fn check_chunk(spec: &Spec, dir: &Path, c: u64, renderer: &str, hash: bool) -> Option<ChunkRecord> {
+    let name = chunk_file(spec, c);
+    let rec_bytes = std::fs::read(dir.join(record_file(&name))).ok()?;
+    let rec: ChunkRecord = serde_json::from_slice(&rec_bytes).ok()?;
+    let expected = (
+        FORMAT,
+        name.as_str(),
+        c,
+        c * spec.chunk_size,
+        spec.chunk_size,
+        spec.digest.as_str(),
+        renderer,
+    );
+    let got = (
+        rec.format.as_str(),
+        rec.file.as_str(),
+        rec.chunk,
+        rec.first,
+        rec.count,
+        rec.spec_sha256.as_str(),
+        rec.renderer.as_str(),
+    );
+    if expected != got {
+        return None;
+    }
+    let path = dir.join(&name);
+    if hash {
+        let bytes = std::fs::read(&path).ok()?;
+        (bytes.len() as u64 == rec.bytes && sha256_hex(&bytes) == rec.sha256).then_some(rec)
+    } else {
+        let meta = std::fs::metadata(&path).ok()?;
+        (meta.is_file() && meta.len() == rec.bytes).then_some(rec)
+    }
+}
+
+/// Writes `bytes` to `dir/name` through a temporary file `.name.XXXX.tmp` and a rename.
+fn write_atomic(dir: &Path, name: &str, bytes: &[u8]) -> Result<()> {
+    use std::io::Write;
+    let path = dir.join(name);
+    let fail = |e: std::io::Error| Error::file(&path, format!("cannot write: {e}"));
+    let mut builder = tempfile::Builder::new();
+    let prefix = format!(".{name}.");
+    builder.prefix(&prefix).suffix(".tmp");
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        builder.permissions(std::fs::Permissions::from_mode(0o666));
+    }
+    let mut file = builder.tempfile_in(dir).map_err(fail)?;
+    file.write_all(bytes).map_err(fail)?;
+    file.as_file().sync_all().map_err(fail)?;
+    file.persist(&path)
+        .map_err(|e| Error::file(&path, format!("cannot write: {}", e.error)))?;
+    Ok(())
+}
+
+/// Removes what a killed run left of chunk file `name`: its temporary files.
+fn remove_leftovers(dir: &Path, name: &str) {
+    let prefix = format!(".{name}.");
+    if let Ok(entries) = std::fs::read_dir(dir) {
+        for e in entries.flatten() {
+            let n = e.file_name();
+            let n = n.to_string_lossy();
+            if n.starts_with(&prefix) && n.ends_with(".tmp") {
+                let _ = std::fs::remove_file(e.path());
+            }
+        }
+    }
+}
+
+/// Checks that `dir` can take this dataset: not a file, and no manifest of another spec
+/// or renderer in it.
+pub fn check_output(spec: &Spec, dir: &Path, renderer: &str) -> Result<()> {
+    if dir.exists() && !dir.is_dir() {
+        return Err(Error::file(dir, "is a file; give a folder for the dataset"));
+    }
+    let manifest = dir.join("manifest.json");
+    if let Ok(bytes) = std::fs::read(&manifest) {
+        let v: serde_json::Value = serde_json::from_slice(&bytes)
+            .map_err(|e| Error::file(&manifest, format!("not a dataset manifest: {e}")))?;
+        let digest = v["spec_sha256"].as_str().unwrap_or("");
+        if digest != spec.digest {
+            return Err(Error::file(
+                &manifest,
+                format!(
+                    "the folder holds a dataset of another spec (or other input files): \
+                     spec_sha256 {digest}, this spec's is {}; write to another folder or \
+                     remove it",
+                    spec.digest
+                ),
+            ));
+        }
+        let theirs = v["renderer"].as_str().unwrap_or("");
+        if theirs != renderer {
+            return Err(Error::file(
+                &manifest,
+                format!(
+                    "the folder's chunks were rendered by '{theirs}', this run renders with \
+                     '{renderer}' (other bits); use that device (MATEDIT_SIMD pins the CPU \
+                     path's instruction set) or another folder"
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Renders chunk `c` of the dataset: its tar bytes.
+pub fn render_chunk(
+    spec: &Spec,
+    engine: &Engine,
+    c: u64,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<Vec<u8>> {
+    let first = c * spec.chunk_size;
+    let width = tar::key_width(spec.count);
+    let one = |k: u64| -> Result<tar::Keyed> {
+        let sample = spec.sample(k)?;
+        let batch = Batch::single(sample.scene.clone())
+            .map_err(|e| Error::Invalid(format!("sample {k}: {e}")))?;
+        let image = engine
+            .renderer
+            .render(&batch)
+            .map_err(|e| Error::Invalid(format!("sample {k}: {e}")))?
+            .remove(0);
+        let members = tar::members(&sample, &image, &engine.label);
+        progress(1);
+        Ok((format!("{k:0width$}"), members))
+    };
+    let range = first..first + spec.chunk_size;
+    let samples: Vec<_> = if engine.parallel {
+        range.into_par_iter().map(one).collect::<Result<_>>()?
+    } else {
+        range.map(one).collect::<Result<_>>()?
+    };
+    tar::encode(&samples)
+}
+
+/// Checks before anything is written that shard `shard` of `spec` can run into `dir` with
+/// `renderer`: no more shards than chunks, `dir` a folder (or missing) holding no other
+/// dataset.
+pub fn check(spec: &Spec, dir: &Path, shard: Shard, renderer: &str) -> Result<()> {
+    let total = spec.chunks();
+    if shard.count > total {
+        return Err(Error::Invalid(format!(
+            "shard {shard}: the spec makes {total} chunk{} ({} samples of chunk_size {}); use \
+             at most {total} shard{}",
+            if total == 1 { "" } else { "s" },
+            spec.count,
+            spec.chunk_size,
+            if total == 1 { "" } else { "s" },
+        )));
+    }
+    check_output(spec, dir, renderer)
+}
+
+/// Runs one shard into `dir` (created if missing): writes its chunks that are not yet
+/// complete, then the manifest. `progress` is told of each sample rendered or skipped.
+pub fn run(
+    spec: &Spec,
+    dir: &Path,
+    shard: Shard,
+    engine: &Engine,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<Summary> {
+    check(spec, dir, shard, &engine.label)?;
+    let start = Instant::now();
+    let created = crate::io::create_dirs(dir)?;
+    let result = run_chunks(spec, dir, shard, engine, progress, start);
+    if result.is_err() {
+        // folders this run made and left empty go too
+        crate::io::remove_created(&created);
+    }
+    result
+}
+
+fn run_chunks(
+    spec: &Spec,
+    dir: &Path,
+    shard: Shard,
+    engine: &Engine,
+    progress: &(dyn Fn(u64) + Sync),
+    start: Instant,
+) -> Result<Summary> {
+    let total = spec.chunks();
+    let mut summary = Summary {
+        shard: shard.to_string(),
+        chunks_total: total,
+        renderer: engine.label.clone(),
+        ..Default::default()
+    };
+    for c in shard.chunks(total) {
+        if check_chunk(spec, dir, c, &engine.label, true).is_some() {
+            summary.chunks_skipped += 1;
+            progress(spec.chunk_size);
+            continue;
+        }
+        let name = chunk_file(spec, c);
+        remove_leftovers(dir, &name);
+        remove_leftovers(dir, &record_file(&name));
+        let bytes = render_chunk(spec, engine, c, progress)?;
+        let record = ChunkRecord {
+            format: FORMAT.into(),
+            file: name.clone(),
+            chunk: c,
+            first: c * spec.chunk_size,
+            count: spec.chunk_size,
+            bytes: bytes.len() as u64,
+            sha256: sha256_hex(&bytes),
+            spec_sha256: spec.digest.clone(),
+            renderer: engine.label.clone(),
+        };
+        let mut rec_bytes = serde_json::to_vec_pretty(&record).unwrap_or_default();
+        rec_bytes.push(b'\n');
+        // a record left over from another spec would otherwise vouch for the new tar
+        let _ = std::fs::remove_file(dir.join(record_file(&name)));
+        write_atomic(dir, &name, &bytes)?;
+        write_atomic(dir, &record_file(&name), &rec_bytes)?;
+        summary.chunks_written += 1;
+        summary.samples += spec.chunk_size;
+    }
+    summary.seconds = start.elapsed().as_secs_f64();
+    let present = write_manifest(spec, dir, &engine.label, false)?;
+    summary.chunks_present = present.len() as u64;
+    Ok(summary)
+}
+
+/// What [`verify`] found.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct Verified {
+    /// Chunks of the whole dataset.
+    pub chunks_total: u64,
+    /// Chunks whose tar matches its record.
+    pub chunks_present: u64,
+    /// Chunks missing or not matching their record.
+    pub missing: Vec<u64>,
+}
+
+/// Checks every chunk of the dataset in `dir` against its record (re-reading each tar)
+/// and rewrites the manifest listing those that match: the final step after shards ran
+/// at the same time.
+pub fn verify(spec: &Spec, dir: &Path, renderer: &str) -> Result<Verified> {
+    if !dir.is_dir() {
+        return Err(Error::file(dir, "no such folder"));
+    }
+    check_output(spec, dir, renderer)?;
+    let present = write_manifest(spec, dir, renderer, true)?;
+    let total = spec.chunks();
+    let missing = (0..total)
+        .filter(|c| !present.iter().any(|r| r.chunk == *c))
+        .collect();
+    Ok(Verified {
+        chunks_total: total,
+        chunks_present: present.len() as u64,
+        missing,
+    })
+}
+
+/// Writes `dir/manifest.json` listing the chunks present (with `hash`, re-hashed); returns
+/// their records.
+fn write_manifest(spec: &Spec, dir: &Path, renderer: &str, hash: bool) -> Result<Vec<ChunkRecord>> {
+    let total = spec.chunks();
+    let present: Vec<ChunkRecord> = (0..total)
+        .into_par_iter()
+        .filter_map(|c| check_chunk(spec, dir, c, renderer, hash))
+        .collect();
+    let samples: u64 = present.iter().map(|r| r.count).sum();
+    let spec_name = spec
+        .path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let manifest = serde_json::json!({
+        "format": FORMAT,
+        "spec": spec_name,
+        "spec_sha256": spec.digest,
+        "renderer": renderer,
+        "count": spec.count,
+        "seed": spec.seed,
+        "chunk_size": spec.chunk_size,
+        "chunks_total": total,
+        "chunks_present": present.len(),
+        "samples_present": samples,
+        "complete": present.len() as u64 == total,
+        "image_size": [spec.image_size.1, spec.image_size.0],
+        "env_size": [spec.env_size.0, spec.env_size.1],
+        "members": tar::MEMBERS,
+        "chunks": present.iter().map(|r| serde_json::json!({
+            "file": r.file, "first": r.first, "count": r.count,
+            "bytes": r.bytes, "sha256": r.sha256,
+        })).collect::<Vec<_>>(),
+    });
+    let mut bytes = serde_json::to_vec_pretty(&manifest).unwrap_or_default();
+    bytes.push(b'\n');
+    write_atomic(dir, "manifest.json", &bytes)?;
+    Ok(present)
+}
+
+/// The data files of a dataset folder (chunk tars and their records), sorted: what any
+/// split of a run writes alike.
+pub fn data_files(dir: &Path) -> Result<Vec<PathBuf>> {
+    let mut out: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map_err(|e| Error::file(dir, format!("cannot list: {e}")))?
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| {
+            p.file_name()
+                .and_then(|n| n.to_str())
+                .is_some_and(|n| n.starts_with("chunk-"))
+        })
+        .collect();
+    out.sort();
+    Ok(out)
+}

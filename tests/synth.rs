@@ -1,0 +1,458 @@
+//! `matedit synth`: the spec of docs/synth.md as written, the same chunk files (bit for
+//! bit) from a whole run and from shards run in any order, a killed run resumed, every
+//! sample's image against a render of its recorded inputs (through the library and
+//! `matedit render`), and bad specs failing before anything is written.
+//!
+//! Datasets are tiny (16 x 16 images, 8 x 16 maps, 12 samples in chunks of 4, `--device
+//! cpu`), except the spec of the documentation (64 x 64, 12 samples).
+
+use std::path::{Path, PathBuf};
+
+use assert_cmd::cargo::cargo_bin_cmd;
+use matedit::io::{self, npy};
+use matedit::synth::{self, tar};
+use matedit::{Batch, Convention, Device, EnvMap, NormalMap, Renderer, Scene};
+
+fn matedit() -> assert_cmd::Command {
+    cargo_bin_cmd!("matedit")
+}
+
+fn dir() -> tempfile::TempDir {
+    tempfile::tempdir().expect("temp dir")
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().expect("UTF-8 path")
+}
+
+/// The procedural sky, `h` x `w`, as an EXR file.
+fn write_sky(path: &Path, h: usize, w: usize) {
+    let env = matedit::defaults::procedural_env(h, w, Convention::Equirect);
+    let bytes = io::exr::encode_rgb(w, h, &env.texels).expect("encode");
+    std::fs::write(path, bytes).expect("write sky");
+}
+
+/// A folder with every kind of source: a normal map file, two env maps in a folder, a
+/// material file; and the spec drawing from them.
+fn small_spec(root: &Path) -> PathBuf {
+    std::fs::create_dir_all(root.join("envs")).unwrap();
+    write_sky(&root.join("envs/a.exr"), 16, 32);
+    let texels: Vec<[f32; 3]> = (0..8 * 16)
+        .map(|i| [0.2 + (i % 7) as f32 * 0.3, 0.5, 1.0 + (i / 16) as f32])
+        .collect();
+    std::fs::write(root.join("envs/b.npy"), npy::encode_rgb(16, 8, &texels)).unwrap();
+    let bumpy = NormalMap::bumpy(16, 16, 99);
+    std::fs::write(
+        root.join("face.npy"),
+        npy::encode_rgb(16, 16, &bumpy.normals),
+    )
+    .unwrap();
+    let clay = matedit::presets::lookup("clay").unwrap();
+    std::fs::write(
+        root.join("clay.json"),
+        io::json::encode_material(&clay, None),
+    )
+    .unwrap();
+    let spec = root.join("spec.json");
+    std::fs::write(
+        &spec,
+        r#"{
+  "count": 12, "seed": 3, "image_size": 16, "env_size": "8x16", "chunk_size": 4,
+  "normals": [{"sphere": 16}, {"bumpy": 16, "weight": 2}, "face.npy"],
+  "envs": [{"folder": "envs"}, {"file": "envs/a.exr", "rotate": false}],
+  "materials": [{"preset": "gold"}, {"random": "merl"}, {"file": "clay.json"},
+                {"random": "merl", "mix": 2}]
+}"#,
+    )
+    .unwrap();
+    spec
+}
+
+fn synth_cmd(spec: &Path, out: &Path, extra: &[&str]) -> assert_cmd::Command {
+    let mut cmd = matedit();
+    cmd.args(["synth", s(spec), "-o", s(out), "--device", "cpu"]);
+    cmd.args(extra);
+    cmd
+}
+
+/// Every data file (chunk tars and records) of a dataset folder with its bytes.
+fn data(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    synth::data_files(dir)
+        .unwrap()
+        .into_iter()
+        .map(|p| {
+            let name = p.file_name().unwrap().to_string_lossy().into_owned();
+            (name, std::fs::read(&p).unwrap())
+        })
+        .collect()
+}
+
+fn names(d: &[(String, Vec<u8>)]) -> Vec<&str> {
+    d.iter().map(|(n, _)| n.as_str()).collect()
+}
+
+fn manifest(dir: &Path) -> serde_json::Value {
+    serde_json::from_slice(&std::fs::read(dir.join("manifest.json")).unwrap()).unwrap()
+}
+
+#[test]
+fn the_documented_spec_works_as_written() {
+    let t = dir();
+    write_sky(&t.path().join("sky.exr"), 64, 128);
+    let spec = t.path().join("spec.json");
+    std::fs::write(
+        &spec,
+        r#"{"count": 12, "seed": 7, "image_size": 64, "env_size": "32x64", "normals": [{"sphere": 64}, {"bumpy": 64}], "envs": ["sky.exr"], "materials": [{"preset": "gold"}, {"random": "merl"}]}"#,
+    )
+    .unwrap();
+    let out = t.path().join("ds");
+    let o = synth_cmd(&spec, &out, &[])
+        .assert()
+        .success()
+        .get_output()
+        .clone();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("12 samples in")
+            && err.contains("samples/s")
+            && err.contains("1 chunk written, 0 skipped"),
+        "{err}"
+    );
+    let m = manifest(&out);
+    assert_eq!(m["complete"], true);
+    assert_eq!(m["count"], 12);
+    assert_eq!(m["chunks"].as_array().unwrap().len(), 1);
+    let bytes = std::fs::read(out.join("chunk-000000.tar")).unwrap();
+    assert_eq!(
+        m["chunks"][0]["sha256"].as_str().unwrap(),
+        matedit::synth::spec::hex(&<sha2::Sha256 as sha2::Digest>::digest(&bytes))
+    );
+    let members = tar::decode(&bytes).unwrap();
+    assert_eq!(members.len(), 12 * 5);
+    assert_eq!(members[0].0, "00000000.env.npy");
+    assert_eq!(members[59].0, "00000011.params.json");
+    // both normal sources, both materials drawn; every sample's map turned by its own amount
+    let params: Vec<serde_json::Value> = members
+        .iter()
+        .filter(|(n, _)| n.ends_with(".params.json"))
+        .map(|(_, b)| serde_json::from_slice(b).unwrap())
+        .collect();
+    for key in ["normals_item", "material_item"] {
+        let items: std::collections::BTreeSet<u64> =
+            params.iter().map(|p| p[key].as_u64().unwrap()).collect();
+        assert_eq!(items.len(), 2, "{key}: {items:?}");
+    }
+    let shifts: std::collections::BTreeSet<u64> = params
+        .iter()
+        .map(|p| p["env"]["rotate_columns"].as_u64().unwrap())
+        .collect();
+    assert!(shifts.len() > 3, "{shifts:?}");
+    assert_eq!(params[5]["index"], 5);
+    assert_eq!(params[5]["seed"], 7);
+    assert_eq!(params[5]["env"]["file"], "sky.exr");
+}
+
+#[test]
+fn shards_in_any_order_write_the_whole_runs_bytes() {
+    let t = dir();
+    let spec = small_spec(t.path());
+    let whole = t.path().join("whole");
+    synth_cmd(&spec, &whole, &[]).assert().success();
+    let split = t.path().join("split");
+    for i in [2, 0, 1] {
+        synth_cmd(
+            &spec,
+            &split,
+            &["--shard", &format!("{i}/3"), "--threads", "1"],
+        )
+        .assert()
+        .success();
+    }
+    let (a, b) = (data(&whole), data(&split));
+    assert_eq!(
+        names(&a),
+        [
+            "chunk-000000.json",
+            "chunk-000000.tar",
+            "chunk-000001.json",
+            "chunk-000001.tar",
+            "chunk-000002.json",
+            "chunk-000002.tar"
+        ]
+    );
+    assert!(a == b, "the shards wrote other bytes than the whole run");
+    // the last shard to finish saw every chunk; --verify says so too
+    assert_eq!(manifest(&split)["complete"], true);
+    synth_cmd(&spec, &split, &["--verify"]).assert().success();
+    // the library gives the same sample twice
+    let sp = synth::Spec::load(&spec).unwrap();
+    let (x, y) = (sp.sample(5).unwrap(), sp.sample(5).unwrap());
+    assert_eq!(x.scene, y.scene);
+    assert_eq!(x.params, y.params);
+}
+
+#[test]
+fn a_killed_run_resumes_and_ends_identical() {
+    let t = dir();
+    let spec = small_spec(t.path());
+    let whole = t.path().join("whole");
+    synth_cmd(&spec, &whole, &[]).assert().success();
+    let reference = data(&whole);
+
+    // killed while writing chunk 1: its temporary file is there, the chunk is not; chunk 2
+    // was damaged afterwards
+    std::fs::remove_file(whole.join("chunk-000001.tar")).unwrap();
+    std::fs::remove_file(whole.join("chunk-000001.json")).unwrap();
+    std::fs::write(whole.join(".chunk-000001.tar.a1b2c3.tmp"), b"partial").unwrap();
+    let c2 = whole.join("chunk-000002.tar");
+    let mut bytes = std::fs::read(&c2).unwrap();
+    bytes[700] ^= 1;
+    std::fs::write(&c2, bytes).unwrap();
+    let o = synth_cmd(&spec, &whole, &["--verify"])
+        .assert()
+        .code(1)
+        .get_output()
+        .clone();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains(
+            "2 chunks missing or not matching their record: chunk-000001.tar, chunk-000002.tar"
+        ),
+        "{err}"
+    );
+
+    let o = synth_cmd(&spec, &whole, &[])
+        .assert()
+        .success()
+        .get_output()
+        .clone();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("2 chunks written, 1 skipped"), "{err}");
+    assert!(
+        data(&whole) == reference,
+        "the resumed run wrote other bytes"
+    );
+    assert!(!whole.join(".chunk-000001.tar.a1b2c3.tmp").exists());
+    assert_eq!(manifest(&whole)["complete"], true);
+
+    // a complete dataset: nothing to do
+    let o = synth_cmd(&spec, &whole, &[])
+        .assert()
+        .success()
+        .get_output()
+        .clone();
+    assert!(String::from_utf8_lossy(&o.stderr).contains("0 samples in"));
+    assert!(data(&whole) == reference);
+}
+
+/// The f32 array of an .npy member as RGB triples, with its (height, width).
+fn rgb(bytes: &[u8]) -> (usize, usize, Vec<[f32; 3]>) {
+    let a = npy::parse(bytes).unwrap();
+    let px = a
+        .data
+        .chunks_exact(3)
+        .map(|c| [c[0] as f32, c[1] as f32, c[2] as f32])
+        .collect();
+    (a.shape[0], a.shape[1], px)
+}
+
+#[test]
+fn every_image_is_a_render_of_its_recorded_inputs() {
+    let t = dir();
+    let spec = small_spec(t.path());
+    let out = t.path().join("ds");
+    synth_cmd(&spec, &out, &[]).assert().success();
+    let cpu = Renderer::new(Device::Cpu).unwrap();
+    let mut checked = 0;
+    let mut kinds = std::collections::BTreeSet::new();
+    for tar_path in synth::data_files(&out).unwrap() {
+        if tar_path.extension().is_some_and(|e| e != "tar") {
+            continue;
+        }
+        let members = tar::decode(&std::fs::read(&tar_path).unwrap()).unwrap();
+        for sample in members.chunks(5) {
+            let get = |suffix: &str| {
+                let (n, b) = sample.iter().find(|(n, _)| n.ends_with(suffix)).unwrap();
+                (n.clone(), b.clone())
+            };
+            let key = get("params.json").0.split('.').next().unwrap().to_string();
+            let params: serde_json::Value = serde_json::from_slice(&get("params.json").1).unwrap();
+            kinds.insert(params["normals_item"].to_string() + &params["material_item"].to_string());
+            let (h, w, normals) = rgb(&get("normals.npy").1);
+            let (eh, ew, texels) = rgb(&get("env.npy").1);
+            let (_, _, image) = rgb(&get("image.npy").1);
+            let sample_dir = t.path().join(&key);
+            std::fs::create_dir_all(&sample_dir).unwrap();
+            let mat_path = sample_dir.join("material.json");
+            std::fs::write(&mat_path, get("material.json").1).unwrap();
+            let scene = Scene {
+                normals: NormalMap::new(w, h, normals).unwrap(),
+                env: EnvMap::new(eh, ew, Convention::Equirect, texels).unwrap(),
+                material: io::load_material(&mat_path).unwrap(),
+                camera: matedit::Camera::Orthographic,
+            };
+            let again = cpu
+                .render(&Batch::single(scene).unwrap())
+                .unwrap()
+                .remove(0);
+            assert!(
+                again.pixels == image,
+                "sample {key}: the library renders other bits"
+            );
+
+            // and `matedit render` of the recorded files
+            for m in ["normals.npy", "env.npy"] {
+                std::fs::write(sample_dir.join(m), get(m).1).unwrap();
+            }
+            let render_out = sample_dir.join("render.npy");
+            matedit()
+                .args(["render", "--device", "cpu", "--env-size", "full", "-o"])
+                .arg(&render_out)
+                .arg("--normals")
+                .arg(sample_dir.join("normals.npy"))
+                .arg("--env")
+                .arg(sample_dir.join("env.npy"))
+                .arg("--material")
+                .arg(&mat_path)
+                .assert()
+                .success();
+            let (_, _, rendered) = rgb(&std::fs::read(&render_out).unwrap());
+            assert!(
+                rendered == image,
+                "sample {key}: `matedit render` gives other bits"
+            );
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, 12);
+    assert!(kinds.len() > 4, "too few kinds of sample drawn: {kinds:?}");
+}
+
+#[test]
+fn bad_specs_fail_before_anything_is_written() {
+    // (key and value replacing or joining the spec's, arguments, what the error says)
+    let cases: &[(&str, &str, &[&str], &[&str])] = &[
+        (
+            "envs",
+            r#"["missing.exr"]"#,
+            &[],
+            &["spec.json: envs[0]:", "missing.exr: no such file"],
+        ),
+        (
+            "normals",
+            r#"[{"sphere": 16}, {"bumpi": 16}]"#,
+            &[],
+            &["spec.json: normals[1]:", "unknown field `bumpi`"],
+        ),
+        (
+            "colour",
+            "1",
+            &[],
+            &["spec.json:", "unknown field `colour`"],
+        ),
+        (
+            "chunk_size",
+            "5",
+            &[],
+            &["spec.json: count: 12 is not a multiple of chunk_size 5"],
+        ),
+        (
+            "materials",
+            r#"[{"preset": "golden"}]"#,
+            &[],
+            &["spec.json: materials[0]: unknown preset 'golden'"],
+        ),
+        (
+            "env_size",
+            r#""5x16""#,
+            &[],
+            &["spec.json: envs[0]:", "a.exr", "cannot make a 5x16 map"],
+        ),
+        (
+            "normals",
+            r#"[{"sphere": 32}]"#,
+            &[],
+            &["spec.json: normals[0]: sphere: size 32x32 differs from image_size 16x16"],
+        ),
+        (
+            "materials",
+            r#"[{"random": "merl", "mix": 0}]"#,
+            &[],
+            &["spec.json: materials[0]: mix: 0"],
+        ),
+        (
+            "",
+            "",
+            &["--shard", "0/4"],
+            &["shard 0/4: the spec makes 3 chunks"],
+        ),
+        (
+            "",
+            "",
+            &["--shard", "3/3"],
+            &["shard 3/3: I must be below N"],
+        ),
+        ("", "", &["--shard", "1-3"], &["is not I/N"]),
+    ];
+    for (key, value, args, expect) in cases {
+        let t = dir();
+        std::fs::create_dir_all(t.path().join("envs")).unwrap();
+        write_sky(&t.path().join("envs/a.exr"), 16, 32);
+        let mut spec_value: serde_json::Value = serde_json::from_str(
+            r#"{"count": 12, "image_size": 16, "env_size": "8x16", "chunk_size": 4,
+               "normals": [{"sphere": 16}], "envs": ["envs/a.exr"],
+               "materials": [{"preset": "gold"}]}"#,
+        )
+        .unwrap();
+        if !key.is_empty() {
+            spec_value[*key] = serde_json::from_str(value).unwrap();
+        }
+        let body = spec_value.to_string();
+        let spec = t.path().join("spec.json");
+        std::fs::write(&spec, &body).unwrap();
+        let out = t.path().join("ds");
+        let o = synth_cmd(&spec, &out, args)
+            .assert()
+            .code(2)
+            .get_output()
+            .clone();
+        let err = String::from_utf8_lossy(&o.stderr);
+        for e in *expect {
+            assert!(err.contains(e), "{body} {args:?}: expected '{e}' in: {err}");
+        }
+        // one line (clap's usage errors add a hint below theirs)
+        assert_eq!(
+            err.lines()
+                .filter(|l| !l.trim().is_empty() && !l.starts_with("For more"))
+                .count(),
+            1,
+            "{err}"
+        );
+        assert!(!err.contains("panicked"), "{err}");
+        assert!(!out.exists(), "{body}: the output folder was created");
+    }
+}
+
+#[test]
+fn a_folder_of_another_spec_is_refused() {
+    let t = dir();
+    let spec = small_spec(t.path());
+    let out = t.path().join("ds");
+    synth_cmd(&spec, &out, &[]).assert().success();
+    let before = data(&out);
+    let text = std::fs::read_to_string(&spec)
+        .unwrap()
+        .replace("\"seed\": 3", "\"seed\": 4");
+    std::fs::write(&spec, text).unwrap();
+    let o = synth_cmd(&spec, &out, &[])
+        .assert()
+        .code(2)
+        .get_output()
+        .clone();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("manifest.json: the folder holds a dataset of another spec"),
+        "{err}"
+    );
+    assert!(data(&out) == before);
+}
