@@ -51,7 +51,7 @@ pub use envmap::{Convention, EnvMap};
 pub use error::{Error, Result};
 pub use material::{Material, N_PARAMS};
 use prepare::Prepared;
-pub use scene::{Batch, Gradients, Image, NormalMap, Scene};
+pub use scene::{Batch, Gradients, Image, NormalMap, Scene, Wanted};
 
 /// Which backend a [`Renderer`] should use.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -103,6 +103,17 @@ pub trait Backend: Send + Sync {
     /// One set of gradients per prepared scene, for upstream dLoss/dImage `upstream` (one
     /// `width` x `height` image per scene); dLoss/dL in its `env_height` x `env_width` grid.
     fn backward_prepared(&self, preps: &[Prepared], upstream: &[Image]) -> Result<Vec<Gradients>>;
+    /// As [`Backend::backward_prepared`], for the gradients `wanted` asks for; the others
+    /// may be left out (the caller zeroes them). By default all three are computed.
+    fn backward_prepared_wanted(
+        &self,
+        preps: &[Prepared],
+        upstream: &[Image],
+        wanted: Wanted,
+    ) -> Result<Vec<Gradients>> {
+        let _ = wanted;
+        self.backward_prepared(preps, upstream)
+    }
     /// dI^k/dn per pixel of each prepared scene (in `pixels` order), `[k][axis]`: what a
     /// normal table interpolates for dLoss/dn. By default three backward passes, one per
     /// channel, over the pixels.
@@ -152,6 +163,16 @@ pub trait Backend: Send + Sync {
     /// One set of gradients per scene, for upstream dLoss/dImage `upstream` (one image per
     /// scene).
     fn backward(&self, batch: &Batch, upstream: &[Image]) -> Result<Vec<Gradients>> {
+        self.backward_wanted(batch, upstream, Wanted::ALL)
+    }
+    /// As [`Backend::backward`], for the gradients `wanted` asks for (see
+    /// [`Backend::backward_prepared_wanted`]).
+    fn backward_wanted(
+        &self,
+        batch: &Batch,
+        upstream: &[Image],
+        wanted: Wanted,
+    ) -> Result<Vec<Gradients>> {
         batch.check_upstream(upstream)?;
         batch
             .scenes()
@@ -159,7 +180,7 @@ pub trait Backend: Send + Sync {
             .zip(upstream)
             .map(|(s, u)| {
                 Ok(self
-                    .backward_prepared(&[Prepared::new(s)], std::slice::from_ref(u))?
+                    .backward_prepared_wanted(&[Prepared::new(s)], std::slice::from_ref(u), wanted)?
                     .remove(0))
             })
             .collect()
@@ -251,10 +272,36 @@ impl Renderer {
         upstream: &[Image],
         accuracy: &Accuracy,
     ) -> Result<(Vec<Gradients>, Vec<Option<lod::Choice>>)> {
+        self.backward_wanted_with(batch, upstream, accuracy, Wanted::ALL)
+    }
+
+    /// As [`Renderer::backward_with`], computing only the gradients `wanted` asks for; the
+    /// others are zeros. The exact layer skips their work (see [`Wanted`]); the levels of
+    /// detail compute all three and zero the others.
+    pub fn backward_wanted_with(
+        &self,
+        batch: &Batch,
+        upstream: &[Image],
+        accuracy: &Accuracy,
+        wanted: Wanted,
+    ) -> Result<(Vec<Gradients>, Vec<Option<lod::Choice>>)> {
         batch.check_upstream(upstream)?;
-        let (grads, choices) = match accuracy {
+        let (mut grads, choices) = match accuracy {
+            // nothing wanted: zeros, without a pass
+            _ if !wanted.any() => (
+                batch
+                    .scenes()
+                    .iter()
+                    .map(|s| Gradients {
+                        d_env: vec![[0.0; 3]; s.env.texels.len()],
+                        d_normals: vec![[0.0; 3]; s.normals.normals.len()],
+                        d_ctrl: [0.0; N_PARAMS],
+                    })
+                    .collect(),
+                vec![None; batch.scenes().len()],
+            ),
             Accuracy::Exact => (
-                self.backend.backward(batch, upstream)?,
+                self.backend.backward_wanted(batch, upstream, wanted)?,
                 vec![None; batch.scenes().len()],
             ),
             _ => {
@@ -275,6 +322,9 @@ impl Renderer {
                 (grads, choices)
             }
         };
+        for g in &mut grads {
+            g.keep(wanted);
+        }
         check_gradients(batch, &grads)?;
         Ok((grads, choices))
     }

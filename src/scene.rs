@@ -370,6 +370,56 @@ pub struct Gradients {
     pub d_ctrl: [f32; N_PARAMS],
 }
 
+/// Which of the three gradients a backward call computes. One that is not wanted comes
+/// back as zeros (in its full shape), and a backend may skip the work for it: the GPU
+/// path leaves out the per-pixel pass without dLoss/dn and the per-texel passes without
+/// dLoss/dL and dLoss/dctrl; the fast CPU path drops dLoss/dn's and dLoss/dctrl's terms
+/// from its pass over the pairs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Wanted {
+    /// dLoss/dL.
+    pub env: bool,
+    /// dLoss/dn.
+    pub normals: bool,
+    /// dLoss/dctrl.
+    pub ctrl: bool,
+}
+
+impl Wanted {
+    /// All three gradients.
+    pub const ALL: Wanted = Wanted {
+        env: true,
+        normals: true,
+        ctrl: true,
+    };
+
+    /// Whether any gradient is wanted.
+    pub fn any(self) -> bool {
+        self.env || self.normals || self.ctrl
+    }
+}
+
+impl Default for Wanted {
+    fn default() -> Self {
+        Wanted::ALL
+    }
+}
+
+impl Gradients {
+    /// Sets the gradients `wanted` leaves out to zeros.
+    pub fn keep(&mut self, wanted: Wanted) {
+        if !wanted.env {
+            self.d_env.iter_mut().for_each(|v| *v = [0.0; 3]);
+        }
+        if !wanted.normals {
+            self.d_normals.iter_mut().for_each(|v| *v = [0.0; 3]);
+        }
+        if !wanted.ctrl {
+            self.d_ctrl = [0.0; N_PARAMS];
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -104,8 +104,11 @@ def render(normals, env, ctrl, *, fov=None, convention="equirect", device="auto"
     )
 
 
-def backward(normals, env, ctrl, upstream, *, fov=None, convention="equirect", device="auto", tolerance=None):
-    """(d_env, d_normals, d_ctrl), float32, for dLoss/dImage `upstream`."""
+def backward(
+    normals, env, ctrl, upstream, *, fov=None, convention="equirect", device="auto", tolerance=None, wanted=None
+):
+    """(d_env, d_normals, d_ctrl), float32, for dLoss/dImage `upstream`. With `wanted` (some of
+    "env", "normals", "ctrl") only those are computed and the others are zeros."""
     return default_renderer(device).backward(
         _f32("normals", normals),
         _f32("env", env),
@@ -114,4 +117,5 @@ def backward(normals, env, ctrl, upstream, *, fov=None, convention="equirect", d
         fov=fov,
         convention=convention,
         tolerance=tolerance,
+        wanted=None if wanted is None else [wanted] if isinstance(wanted, str) else list(wanted),
     )

@@ -80,7 +80,12 @@ def _backward_op(
     fov: float,
     convention: str,
     device: str,
+    want_normals: bool = True,
+    want_env: bool = True,
+    want_ctrl: bool = True,
 ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    # the gradients not wanted are zeros, and the layer skips their work
+    wanted = [name for name, w in (("normals", want_normals), ("env", want_env), ("ctrl", want_ctrl)) if w]
     d_env, d_normals, d_ctrl = matedit.backward(
         _np(normals),
         _np(env),
@@ -89,6 +94,7 @@ def _backward_op(
         fov=fov if fov > 0 else None,
         convention=convention,
         device=device,
+        wanted=wanted,
     )
     # an input shared by the batch gets the batch's sum
     if env.dim() == 3 and d_env.ndim == 4:
@@ -105,7 +111,7 @@ def _backward_op(
 
 
 @_backward_op.register_fake
-def _(normals, env, ctrl, upstream, fov, convention, device):
+def _(normals, env, ctrl, upstream, fov, convention, device, want_normals=True, want_env=True, want_ctrl=True):
     return normals.new_empty(env.shape), normals.new_empty(normals.shape), ctrl.new_empty(ctrl.shape)
 
 
@@ -119,10 +125,10 @@ def _backward(ctx, grad):
     normals, env, ctrl = ctx.saved_tensors
     if not any(ctx.needs_input_grad[:3]):
         return None, None, None, None, None, None
-    d_env, d_normals, d_ctrl = torch.ops.matedit.render_backward(
-        normals, env, ctrl, grad.contiguous(), *ctx.options
-    )
     need = ctx.needs_input_grad
+    d_env, d_normals, d_ctrl = torch.ops.matedit.render_backward(
+        normals, env, ctrl, grad.contiguous(), *ctx.options, need[0], need[1], need[2]
+    )
     return (
         d_normals if need[0] else None,
         d_env if need[1] else None,

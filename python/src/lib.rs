@@ -11,7 +11,9 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
 use matedit::io::{self, EnvSize};
-use matedit::{Accuracy, Batch, Camera, Convention, Device, EnvMap, Image, Material, NormalMap};
+use matedit::{
+    Accuracy, Batch, Camera, Convention, Device, EnvMap, Image, Material, NormalMap, Wanted,
+};
 use numpy::ndarray::{Array, IxDyn};
 use numpy::{IntoPyArray, PyArrayDyn, PyReadonlyArrayDyn, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
@@ -170,6 +172,31 @@ fn scenes(
     })
 }
 
+/// The gradients a backward call computes: all three, or those named.
+fn wanted_of(names: Option<Vec<String>>) -> PyResult<Wanted> {
+    let Some(names) = names else {
+        return Ok(Wanted::ALL);
+    };
+    let mut w = Wanted {
+        env: false,
+        normals: false,
+        ctrl: false,
+    };
+    for n in &names {
+        match n.as_str() {
+            "env" => w.env = true,
+            "normals" => w.normals = true,
+            "ctrl" => w.ctrl = true,
+            _ => {
+                return Err(invalid(format!(
+                    "wanted: unknown gradient '{n}': expected some of env, normals, ctrl"
+                )));
+            }
+        }
+    }
+    Ok(w)
+}
+
 fn accuracy(tolerance: Option<f64>) -> PyResult<Accuracy> {
     match tolerance {
         None => Ok(Accuracy::Exact),
@@ -284,8 +311,10 @@ impl Renderer {
         )
     }
 
-    /// (d_env, d_normals, d_ctrl) for dLoss/dImage `upstream` (the image's shape).
-    #[pyo3(signature = (normals, env, ctrl, upstream, *, fov = None, convention = "equirect", tolerance = None))]
+    /// (d_env, d_normals, d_ctrl) for dLoss/dImage `upstream` (the image's shape). With
+    /// `wanted` (some of "env", "normals", "ctrl") only those are computed; the others are
+    /// zeros.
+    #[pyo3(signature = (normals, env, ctrl, upstream, *, fov = None, convention = "equirect", tolerance = None, wanted = None))]
     #[allow(clippy::too_many_arguments, reason = "the Python signature")]
     fn backward<'py>(
         &self,
@@ -297,7 +326,9 @@ impl Renderer {
         fov: Option<f64>,
         convention: &str,
         tolerance: Option<f64>,
+        wanted: Option<Vec<String>>,
     ) -> PyResult<Grads<'py>> {
+        let wanted = wanted_of(wanted)?;
         let s = scenes(&normals, &env, &ctrl, fov, convention)?;
         let acc = accuracy(tolerance)?;
         let Rgb {
@@ -327,7 +358,10 @@ impl Renderer {
             })
             .collect();
         let (grads, _) = self
-            .timed(py, || self.inner.backward_with(&s.batch, &ups, &acc))
+            .timed(py, || {
+                self.inner
+                    .backward_wanted_with(&s.batch, &ups, &acc, wanted)
+            })
             .map_err(py_err)?;
         let batched = s.batched || ub;
         let env0 = &s.batch.scenes()[0].env;

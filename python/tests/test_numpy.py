@@ -98,6 +98,25 @@ def test_batched_equals_one_by_one():
             np.testing.assert_array_equal(b[i], o)
 
 
+def test_only_the_wanted_gradients():
+    normals, env, ctrl = scene()
+    env[::3] = 0.0  # black texels: left out without d_env on the fast CPU path
+    up = np.random.default_rng(1).standard_normal((16, 16, 3)).astype(np.float32)
+    for device in ("cpu", "reference"):
+        full = matedit.backward(normals, env, ctrl, up, device=device)
+        for wanted in (["ctrl"], ["normals"], ("env",), "env", ["env", "ctrl"], []):
+            got = matedit.backward(normals, env, ctrl, up, device=device, wanted=wanted)
+            names = [wanted] if isinstance(wanted, str) else list(wanted)
+            for name, g, f in zip(("env", "normals", "ctrl"), got, full):
+                assert g.shape == f.shape
+                if name in names:
+                    np.testing.assert_allclose(g, f, rtol=1e-5, atol=1e-5 * np.abs(f).max())
+                else:
+                    assert not g.any(), (device, wanted, name)
+    with pytest.raises(ValueError, match="wanted: unknown gradient 'light'"):
+        matedit.backward(normals, env, ctrl, up, wanted=["light"])
+
+
 def test_non_contiguous_inputs_are_read_right():
     normals, env, ctrl = scene()
     wide = np.zeros((16, 32, 3), np.float32)

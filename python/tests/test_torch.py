@@ -95,6 +95,10 @@ def test_only_requested_gradients():
     e.requires_grad_(False)
     mt.render(n, e, c).sum().backward()
     assert n.grad is None and e.grad is None and c.grad is not None
+    # the same d_ctrl as when all three are computed
+    n2, e2, c2 = (t.detach().clone().requires_grad_() for t in (n, e, c))
+    mt.render(n2, e2, c2).sum().backward()
+    torch.testing.assert_close(c.grad, c2.grad, rtol=1e-5, atol=1e-5 * c2.grad.abs().max().item())
 
 
 def test_batched_and_shared_inputs():

@@ -9,6 +9,7 @@ use super::math::{exp2, exp2m1};
 use super::pair::{Cols, Setup, coef, dpow, geo, underflows};
 use super::table::{Px, TexelTable};
 use crate::material::idx;
+use crate::scene::Wanted;
 use crate::spline::N_CTRL_POINTS;
 
 /// Per-texel f64 sums of one orthographic pass: dLoss/dL / d_omega (3), then
@@ -27,6 +28,9 @@ pub struct Backward<'a> {
     pub tex: &'a mut [f64],
     /// Perspective: dLoss/dctrl, added into.
     pub ctrl: &'a mut [f64; crate::N_PARAMS],
+    /// The gradients to compute: the terms of the others are left out (their sums stay
+    /// as they were).
+    pub wanted: Wanted,
 }
 
 impl WithSimd for Backward<'_> {
@@ -53,6 +57,7 @@ impl Backward<'_> {
         let per_group = (GROUP_TEXELS / lanes).max(1);
         let zero = s.splat_f32s(0.0);
         let one = s.splat_f32s(1.0);
+        let (want_dn, want_ctrl) = (self.wanted.normals, self.wanted.ctrl);
         // per block of the group: dL/d_omega (3), then per (k, s, t) one sum (orthographic)
         // or one per spline point j (perspective)
         let per_t = if P { N_CTRL_POINTS } else { 1 };
@@ -92,7 +97,11 @@ impl Backward<'_> {
                         continue;
                     };
                     let acc = &mut tacc[(b - g0) * stride..(b - g0 + 1) * stride];
-                    let inv_x = s.div_f32s(one, s.max_f32s(g.x, s.splat_f32s(1e-30)));
+                    let inv_x = if want_dn {
+                        s.div_f32s(one, s.max_f32s(g.x, s.splat_f32s(1e-30)))
+                    } else {
+                        zero
+                    };
                     let gl: [S::f32s; 3] =
                         std::array::from_fn(|k| s.mul_f32s(s.splat_f32s(gp[k]), cols.ld[k][b]));
                     // weights of this pair in the texel's sums for dctrl
@@ -110,12 +119,20 @@ impl Backward<'_> {
                                     continue;
                                 }
                                 let xb = exp2(s, t);
-                                (Some(xb), dpow(s, m1, xb, inv_x, g.pos))
+                                let dp = if want_dn {
+                                    dpow(s, m1, xb, inv_x, g.pos)
+                                } else {
+                                    zero
+                                };
+                                (Some(xb), dp)
                             }
                             None => (None, zero),
                         };
                         for ((lobe, off), a_col) in grp.lobes.iter().zip(offsets).zip(a_cols) {
                             if lobe.zero_scale {
+                                if !want_ctrl {
+                                    continue;
+                                }
                                 // E = 1: only dLoss/dm0 = x^m1
                                 let t1 = xb.unwrap_or(one);
                                 for k in 0..3 {
@@ -144,7 +161,9 @@ impl Backward<'_> {
                             // E x^m1, E m0 x^m1 and E m0 m1 x^(m1 - 1) (0 for x^0)
                             let t1 = xb.map_or(e1, |xb| s.mul_f32s(e1, xb));
                             let u = s.mul_f32s(t1, a);
-                            let ead = xb.map(|_| s.mul_f32s(s.mul_f32s(e1, a), dp));
+                            let ead = xb
+                                .filter(|_| want_dn)
+                                .map(|_| s.mul_f32s(s.mul_f32s(e1, a), dp));
                             for k in 0..3 {
                                 if lobe.channels & (1 << k) == 0 {
                                     continue;
@@ -152,6 +171,9 @@ impl Backward<'_> {
                                 f[k] = s.add_f32s(f[k], em1);
                                 if let Some(ead) = ead {
                                     dx[k] = s.add_f32s(dx[k], ead);
+                                }
+                                if !want_ctrl {
+                                    continue;
                                 }
                                 let i0 = off[k];
                                 let d0 = s.mul_f32s(wk[k], t1);
@@ -161,11 +183,16 @@ impl Backward<'_> {
                             }
                         }
                     }
-                    let mut along_w = zero;
-                    let mut along_h = zero;
                     for k in 0..3 {
                         acc[k] =
                             s.mul_add_e_f32s(s.mul_f32s(s.splat_f32s(gp[k]), g.c), f[k], acc[k]);
+                    }
+                    if !want_dn {
+                        continue;
+                    }
+                    let mut along_w = zero;
+                    let mut along_h = zero;
+                    for k in 0..3 {
                         along_w = s.mul_add_e_f32s(gl[k], f[k], along_w);
                         along_h = s.mul_add_e_f32s(gl[k], dx[k], along_h);
                     }
@@ -194,13 +221,13 @@ impl Backward<'_> {
                     for q in 0..3 {
                         t[q] += vals[q * lanes + lane] as f64;
                     }
-                    if !P {
+                    if !P && want_ctrl {
                         for q in 3..TEXEL_SUMS {
                             t[q] += vals[q * lanes + lane] as f64;
                         }
                     }
                 }
-                if P {
+                if P && want_ctrl {
                     for k in 0..3 {
                         for sl in 0..3 {
                             for t in 0..2 {

@@ -23,7 +23,7 @@ use rayon::prelude::*;
 use crate::error::{Error, Result};
 use crate::material::N_PARAMS;
 use crate::prepare::Prepared;
-use crate::scene::{Gradients, Image};
+use crate::scene::{Gradients, Image, Wanted};
 use crate::spline::spline_basis;
 use crate::{Backend, material::idx};
 
@@ -225,12 +225,29 @@ impl FastCpu {
 
     /// The backward pass of a prepared scene for upstream `g` (row-major).
     pub fn backward(&self, prep: &Prepared, g: &[[f32; 3]]) -> Gradients {
+        self.backward_wanted(prep, g, Wanted::ALL)
+    }
+
+    /// The backward pass for the gradients `wanted` asks for; the others are zeros.
+    /// Without dLoss/dL only the lit texels are visited (every other term is a multiple of
+    /// the radiance), without dLoss/dctrl only the lobes with a scale (the others add
+    /// nothing to the image), and the terms of what is not wanted are left out.
+    pub fn backward_wanted(&self, prep: &Prepared, g: &[[f32; 3]], wanted: Wanted) -> Gradients {
         let perspective = !prep.camera.is_orthographic();
         let ctrl = &prep.ctrl;
-        // every lobe: a lobe whose scale is 0 still has a gradient for its scale
-        let plan = LobePlan::new(ctrl, |_, _| true);
-        let all: Vec<usize> = (0..prep.texels.len()).collect();
-        let table = TexelTable::new(prep, &all, &plan.columns(), &plan.const_columns(), &[]);
+        // dLoss/dctrl: every lobe (a lobe whose scale is 0 still has a gradient for its
+        // scale); else the lobes that add to the image
+        let plan = if wanted.ctrl {
+            LobePlan::new(ctrl, |_, _| true)
+        } else {
+            LobePlan::new(ctrl, |k, s| has_scale(ctrl, k, s))
+        };
+        let texels: Vec<usize> = if wanted.env {
+            (0..prep.texels.len()).collect()
+        } else {
+            prep.lit.clone()
+        };
+        let table = TexelTable::new(prep, &texels, &plan.columns(), &plan.const_columns(), &[]);
         let inputs = PassInputs::new(prep, plan);
         let (setup, px) = (inputs.setup(), &inputs.px);
         let gp: Vec<[f32; 3]> = prep.pixels.iter().map(|p| g[p.index]).collect();
@@ -270,6 +287,7 @@ impl FastCpu {
                         dn,
                         tex: &mut part.tex,
                         ctrl: &mut part.ctrl,
+                        wanted,
                     });
                 }
                 part
@@ -374,10 +392,19 @@ impl Backend for FastCpu {
     }
 
     fn backward_prepared(&self, preps: &[Prepared], upstream: &[Image]) -> Result<Vec<Gradients>> {
+        self.backward_prepared_wanted(preps, upstream, Wanted::ALL)
+    }
+
+    fn backward_prepared_wanted(
+        &self,
+        preps: &[Prepared],
+        upstream: &[Image],
+        wanted: Wanted,
+    ) -> Result<Vec<Gradients>> {
         Ok(preps
             .iter()
             .zip(upstream)
-            .map(|(p, u)| FastCpu::backward(self, p, &u.pixels))
+            .map(|(p, u)| FastCpu::backward_wanted(self, p, &u.pixels, wanted))
             .collect())
     }
 

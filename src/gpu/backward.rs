@@ -9,15 +9,9 @@ use super::{GpuRenderer, Pass};
 use crate::error::Result;
 use crate::material::N_PARAMS;
 use crate::prepare::Prepared;
-use crate::scene::{Gradients, Image};
+use crate::scene::{Gradients, Image, Wanted};
 
 /// Readback slots of one scene's gradients.
-struct Slots {
-    d_env: Vec<usize>,
-    d_ctrl: usize,
-    d_normals: Vec<usize>,
-}
-
 /// The GPU records of a scene's texels.
 fn texel_records(prep: &Prepared) -> Vec<Texel> {
     prep.texels
@@ -217,12 +211,23 @@ fn encode_texel_scene(
     (d_env_slots, ctrl_slot)
 }
 
-/// Gradients per prepared scene for upstream images, in one submission.
+/// Gradients per prepared scene for upstream images, in one submission: the per-texel
+/// passes (dLoss/dL, dLoss/dctrl) and the per-pixel pass (dLoss/dn) as far as `wanted`
+/// asks for them; what it leaves out is zeros.
 pub(super) fn backward(
     r: &GpuRenderer,
     preps: &[Prepared],
     upstream: &[Image],
+    wanted: Wanted,
 ) -> Result<Vec<Gradients>> {
+    let zeros = |prep: &Prepared| Gradients {
+        d_env: vec![[0.0f32; 3]; prep.env_height * prep.env_width],
+        d_normals: vec![[0.0f32; 3]; prep.width * prep.height],
+        d_ctrl: [0.0f32; N_PARAMS],
+    };
+    if !wanted.any() {
+        return Ok(preps.iter().map(zeros).collect());
+    }
     let mut sub = Submission::new(r, "backward");
     let pixels: Vec<Vec<Pixel>> = preps
         .iter()
@@ -234,35 +239,29 @@ pub(super) fn backward(
                 .collect()
         })
         .collect();
-    let texel = encode_texel(r, preps, &pixels, &mut sub);
-    let normal = encode_per_pixel(r, Pass::BackwardNormal, preps, &pixels, &mut sub);
-    let slots: Vec<Slots> = texel
-        .into_iter()
-        .zip(normal)
-        .map(|((d_env, d_ctrl), d_normals)| Slots {
-            d_env,
-            d_ctrl,
-            d_normals,
-        })
-        .collect();
+    let texel = (wanted.env || wanted.ctrl).then(|| encode_texel(r, preps, &pixels, &mut sub));
+    let normal = wanted
+        .normals
+        .then(|| encode_per_pixel(r, Pass::BackwardNormal, preps, &pixels, &mut sub));
     let (data, run) = sub.finish()?;
     r.record(run);
     Ok(preps
         .iter()
-        .zip(slots)
-        .map(|(prep, s)| {
-            let mut d_env = vec![[0.0f32; 3]; prep.env_height * prep.env_width];
-            let vals = s.d_env.iter().flat_map(|&i| data[i].chunks_exact(4));
-            for (t, v) in prep.texels.iter().zip(vals) {
-                d_env[t.index] = [v[0], v[1], v[2]];
+        .enumerate()
+        .map(|(b, prep)| {
+            let mut g = zeros(prep);
+            if let Some(texel) = &texel {
+                let (d_env, d_ctrl) = &texel[b];
+                let vals = d_env.iter().flat_map(|&i| data[i].chunks_exact(4));
+                for (t, v) in prep.texels.iter().zip(vals) {
+                    g.d_env[t.index] = [v[0], v[1], v[2]];
+                }
+                g.d_ctrl.copy_from_slice(&data[*d_ctrl][..N_PARAMS]);
             }
-            let mut d_ctrl = [0.0f32; N_PARAMS];
-            d_ctrl.copy_from_slice(&data[s.d_ctrl][..N_PARAMS]);
-            Gradients {
-                d_env,
-                d_normals: scatter_pixels(prep, &data, &s.d_normals),
-                d_ctrl,
+            if let Some(normal) = &normal {
+                g.d_normals = scatter_pixels(prep, &data, &normal[b]);
             }
+            g
         })
         .collect())
 }

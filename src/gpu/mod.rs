@@ -24,7 +24,7 @@ pub use plan::{Dispatch, Planner, Shape};
 use crate::Backend;
 use crate::error::{Error, Result};
 use crate::prepare::Prepared;
-use crate::scene::{Batch, Gradients, Image};
+use crate::scene::{Batch, Gradients, Image, Wanted};
 use pipelines::Pipeline;
 use submission::LastRun;
 
@@ -191,7 +191,18 @@ impl Backend for GpuRenderer {
     }
 
     fn backward_prepared(&self, preps: &[Prepared], upstream: &[Image]) -> Result<Vec<Gradients>> {
-        self.scoped("backward", || backward::backward(self, preps, upstream))
+        self.backward_prepared_wanted(preps, upstream, Wanted::ALL)
+    }
+
+    fn backward_prepared_wanted(
+        &self,
+        preps: &[Prepared],
+        upstream: &[Image],
+        wanted: Wanted,
+    ) -> Result<Vec<Gradients>> {
+        self.scoped("backward", || {
+            backward::backward(self, preps, upstream, wanted)
+        })
     }
 
     // the whole batch in one submission
@@ -200,9 +211,14 @@ impl Backend for GpuRenderer {
         self.render_prepared(&preps)
     }
 
-    fn backward(&self, batch: &Batch, upstream: &[Image]) -> Result<Vec<Gradients>> {
+    fn backward_wanted(
+        &self,
+        batch: &Batch,
+        upstream: &[Image],
+        wanted: Wanted,
+    ) -> Result<Vec<Gradients>> {
         batch.check_upstream(upstream)?;
         let preps: Vec<Prepared> = batch.scenes().iter().map(Prepared::new).collect();
-        self.backward_prepared(&preps, upstream)
+        self.backward_prepared_wanted(&preps, upstream, wanted)
     }
 }
