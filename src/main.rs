@@ -41,10 +41,12 @@ Examples:
   matedit grad -o grads/ --upstream dloss_dimage.npy
   matedit grad -o grads/ --sphere 64 --env sky.exr --preset clay --upstream up.exr
   matedit grad --batch scenes.json -o grads/
+  matedit grad -o grads/ --upstream up.npy --only ctrl
 
 Writes DIR/d_env.npy (H_L x W_L x 3), DIR/d_normals.npy (H x W x 3) and
-DIR/d_material.json ({\"ctrl\": [108 numbers]}). With --batch, each scene's
-'output' is its folder and 'upstream' its gradient file.";
+DIR/d_material.json ({\"ctrl\": [108 numbers]}); --only ctrl (or env, normals, a
+comma-separated list) computes and writes only those, in less time. With --batch, each
+scene's 'output' is its folder and 'upstream' its gradient file.";
 
 const INFO_EXAMPLES: &str = "\
 Examples:
@@ -377,6 +379,33 @@ struct GradArgs {
     /// Upstream gradient dLoss/dImage, H x W x 3, .npy or .exr.
     #[arg(long, value_name = "FILE", required_unless_present = "batch")]
     upstream: Option<PathBuf>,
+    /// Compute and write only these gradients (comma-separated) [default: all three].
+    #[arg(long, value_name = "LIST", value_delimiter = ',')]
+    only: Vec<GradKind>,
+}
+
+/// One of the three gradients `grad` writes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum GradKind {
+    /// dLoss/dL: d_env.npy.
+    Env,
+    /// dLoss/dn: d_normals.npy.
+    Normals,
+    /// dLoss/dctrl: d_material.json.
+    Ctrl,
+}
+
+impl GradArgs {
+    fn wanted(&self) -> matedit::Wanted {
+        if self.only.is_empty() {
+            return matedit::Wanted::ALL;
+        }
+        matedit::Wanted {
+            env: self.only.contains(&GradKind::Env),
+            normals: self.only.contains(&GradKind::Normals),
+            ctrl: self.only.contains(&GradKind::Ctrl),
+        }
+    }
 }
 
 #[derive(Args)]
@@ -644,7 +673,7 @@ fn grad(args: &GradArgs) -> Result<(), Failure> {
     let renderer = renderer(&args.scene)?;
     let start = Instant::now();
     let (grads, choices) = with_progress("differentiating", || {
-        renderer.backward_with(&loaded.batch, &upstream, &accuracy)
+        renderer.backward_wanted_with(&loaded.batch, &upstream, &accuracy, args.wanted())
     })?;
     if args.scene.timings {
         print_timings(&renderer, start.elapsed());
@@ -654,7 +683,7 @@ fn grad(args: &GradArgs) -> Result<(), Failure> {
     // already in place and the folders this run created are removed: a batch is written
     // whole or not at all
     let mut created = Vec::new();
-    let result = write_grads(&plan, &loaded.batch, &grads, &mut created);
+    let result = write_grads(&plan, &loaded.batch, &grads, args.wanted(), &mut created);
     if result.is_err() {
         io::remove_created(&created);
     }
@@ -665,6 +694,7 @@ fn write_grads(
     plan: &Plan,
     batch: &matedit::Batch,
     grads: &[matedit::Gradients],
+    wanted: matedit::Wanted,
     created: &mut Vec<PathBuf>,
 ) -> Result<(), Failure> {
     let mut staged = Vec::new();
@@ -674,21 +704,17 @@ fn write_grads(
         let env = &scene.env;
         let n = &scene.normals;
         let files = [
-            (
-                dir.join("d_env.npy"),
-                io::npy::encode_rgb(env.width, env.height, &g.d_env),
-            ),
-            (
-                dir.join("d_normals.npy"),
-                io::npy::encode_rgb(n.width, n.height, &g.d_normals),
-            ),
-            (
-                dir.join("d_material.json"),
-                io::json::encode_gradient(&g.d_ctrl),
-            ),
+            (wanted.env, "d_env.npy"),
+            (wanted.normals, "d_normals.npy"),
+            (wanted.ctrl, "d_material.json"),
         ];
-        for (path, bytes) in &files {
-            staged.push(io::stage(path, bytes).map_err(runtime)?);
+        for (_, name) in files.iter().filter(|(w, _)| *w) {
+            let bytes = match *name {
+                "d_env.npy" => io::npy::encode_rgb(env.width, env.height, &g.d_env),
+                "d_normals.npy" => io::npy::encode_rgb(n.width, n.height, &g.d_normals),
+                _ => io::json::encode_gradient(&g.d_ctrl),
+            };
+            staged.push(io::stage(&dir.join(name), &bytes).map_err(runtime)?);
         }
     }
     for p in io::commit_all(staged).map_err(runtime)? {

@@ -524,6 +524,61 @@ fn grad_matches_the_library() {
 }
 
 #[test]
+fn grad_only_writes_the_gradients_asked_for() {
+    let d = dir();
+    let upstream: Vec<[f32; 3]> = (0..256)
+        .map(|i| [1.0, (i % 5) as f32 * 0.2 - 0.4, 0.5])
+        .collect();
+    let up = d.path().join("up.npy");
+    write_npy(&up, 16, 16, &upstream);
+    let run = |out: &Path, only: Option<&str>| {
+        let mut cmd = matedit();
+        cmd.args(["grad", "-o", path_str(out), "--upstream", path_str(&up)])
+            .args(SMALL);
+        if let Some(only) = only {
+            cmd.args(["--only", only]);
+        }
+        let res = cmd.output().unwrap();
+        assert!(
+            res.status.success(),
+            "{}",
+            String::from_utf8_lossy(&res.stderr)
+        );
+    };
+    let all = d.path().join("all");
+    run(&all, None);
+    let some = d.path().join("some");
+    run(&some, Some("ctrl,normals"));
+    assert_eq!(listing(&some), ["d_material.json", "d_normals.npy"]);
+    let a = read_ctrl(&all.join("d_material.json"));
+    let b = read_ctrl(&some.join("d_material.json"));
+    for (x, y) in a.iter().zip(&b) {
+        assert!((x - y).abs() <= 1e-5 * x.abs().max(1e-3), "{x} vs {y}");
+    }
+    let ctrl = d.path().join("ctrl");
+    run(&ctrl, Some("ctrl"));
+    assert_eq!(listing(&ctrl), ["d_material.json"]);
+    // an unknown name: an error naming the value, nothing written
+    let bad = d.path().join("bad");
+    let res = matedit()
+        .args([
+            "grad",
+            "-o",
+            path_str(&bad),
+            "--upstream",
+            path_str(&up),
+            "--only",
+            "light",
+        ])
+        .args(SMALL)
+        .output()
+        .unwrap();
+    assert!(!res.status.success());
+    assert!(String::from_utf8_lossy(&res.stderr).contains("invalid value 'light' for '--only"));
+    assert!(!bad.exists());
+}
+
+#[test]
 fn grad_batch() {
     let d = dir();
     let ones = vec![[1.0f32; 3]; 64];
