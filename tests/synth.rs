@@ -456,3 +456,66 @@ fn a_folder_of_another_spec_is_refused() {
     );
     assert!(data(&out) == before);
 }
+
+#[test]
+fn gpu_shards_write_the_whole_runs_bytes() {
+    // the GPU path (lavapipe in CI): skipped without an adapter unless MATEDIT_REQUIRE_GPU=1
+    if let Err(e) = matedit::gpu::GpuRenderer::new() {
+        assert_ne!(
+            std::env::var("MATEDIT_REQUIRE_GPU").as_deref(),
+            Ok("1"),
+            "MATEDIT_REQUIRE_GPU=1 but no GPU: {e}"
+        );
+        eprintln!("SKIPPED gpu_shards_write_the_whole_runs_bytes: {e}");
+        return;
+    }
+    let t = dir();
+    let spec = small_spec(t.path());
+    let run = |out: &Path, extra: &[&str]| {
+        matedit()
+            .args(["synth", s(&spec), "-o", s(out), "--device", "gpu"])
+            .args(extra)
+            .assert()
+            .success();
+    };
+    let whole = t.path().join("whole");
+    run(&whole, &[]);
+    let split = t.path().join("split");
+    for i in [1, 2, 0] {
+        run(&split, &["--shard", &format!("{i}/3")]);
+    }
+    let (a, b) = (data(&whole), data(&split));
+    assert_eq!(a.len(), 6);
+    assert!(
+        a == b,
+        "the GPU shards wrote other bytes than the whole run"
+    );
+    // the GPU's images are the GPU's, within f32 rounding of the fast CPU path's
+    let cpu = t.path().join("cpu");
+    synth_cmd(&spec, &cpu, &[]).assert().success();
+    let tars = |d: &Path| -> Vec<(String, Vec<u8>)> {
+        (0..3)
+            .flat_map(|c| {
+                let bytes = std::fs::read(d.join(format!("chunk-{c:06}.tar"))).unwrap();
+                tar::decode(&bytes).unwrap()
+            })
+            .collect()
+    };
+    let (g, c) = (tars(&whole), tars(&cpu));
+    assert_eq!(g.len(), c.len());
+    let mut images = 0;
+    for ((ng, dg), (nc, dc)) in g.iter().zip(&c) {
+        assert_eq!(ng, nc);
+        if ng.ends_with(".image.npy") {
+            images += 1;
+            let (_, _, pg) = rgb(dg);
+            let (_, _, pc) = rgb(dc);
+            let peak = pc.iter().flatten().fold(0.0f32, |m, v| m.max(v.abs()));
+            assert!(peak > 0.0, "{ng}: a black image");
+            for (x, y) in pg.iter().flatten().zip(pc.iter().flatten()) {
+                assert!((x - y).abs() <= 1e-4 * peak, "{ng}: {x} vs {y}");
+            }
+        }
+    }
+    assert_eq!(images, 12);
+}
