@@ -32,7 +32,7 @@ use crate::envmap::{Convention, EnvMap, MAX_RADIANCE};
 use crate::error::{Error, Result, invalid};
 use crate::material::{MAX_ABS_SCALE, MAX_EXPONENT, N_COEFS, N_LOBES, N_PARAMS, idx};
 use crate::spline::N_CTRL_POINTS;
-use crate::{Batch, Camera, Image, Material, NormalMap, Renderer, Scene};
+use crate::{Accuracy, Batch, Camera, Image, Material, NormalMap, Renderer, Scene, Wanted};
 
 /// What the fit does with the light.
 #[derive(Clone, Debug, PartialEq)]
@@ -490,7 +490,15 @@ pub fn fit(
         let batch = Batch::single(scene)?;
         let image = renderer.render(&batch)?.remove(0);
         let (mut loss, up) = data_term(&image, &work, c, n);
-        let grads = renderer.backward(&batch, &[up])?.remove(0);
+        // dLoss/dn is never used, dLoss/dL only when the light is fitted
+        let wanted = Wanted {
+            env: fixed_env.is_none(),
+            normals: false,
+            ctrl: true,
+        };
+        let (mut grads, _) =
+            renderer.backward_wanted_with(&batch, &[up], &Accuracy::Exact, wanted)?;
+        let grads = grads.remove(0);
         let mut g = vec![0.0; u.len()];
         for i in 0..n_mat {
             g[i] = f64::from(grads.d_ctrl[i]) * dctrl[i];
