@@ -348,13 +348,19 @@ fn bad_specs_fail_before_anything_is_written() {
             "colour",
             "1",
             &[],
-            &["spec.json:", "unknown field `colour`"],
+            &["spec.json: colour: unknown field `colour`"],
         ),
         (
             "chunk_size",
             "5",
             &[],
             &["spec.json: count: 12 is not a multiple of chunk_size 5"],
+        ),
+        (
+            "seed",
+            "-1",
+            &[],
+            &["spec.json: seed: invalid value: integer `-1`"],
         ),
         (
             "materials",

@@ -382,8 +382,15 @@ impl Spec {
         if !value.is_object() {
             return Err(err("a spec is a JSON object".into()));
         }
-        let raw: RawSpec = serde_json::from_value(value.clone())
-            .map_err(|e| err(format!("not a valid spec: {}", serde_message(&e))))?;
+        let raw: RawSpec = serde_path_to_error::deserialize(value.clone()).map_err(|e| {
+            let at = e.path().to_string();
+            let message = serde_message(e.inner());
+            if at == "." {
+                err(format!("not a valid spec: {message}"))
+            } else {
+                err(format!("{at}: {message}"))
+            }
+        })?;
         let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
         let mut hasher = Sha256::new();
         hasher.update(b"matedit synth spec 1\n");
