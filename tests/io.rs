@@ -383,6 +383,14 @@ fn material_json() {
     std::fs::write(d.path().join("typo.json"), r#"{"ctlr": []}"#).unwrap();
     let e = msg(io::load_material(&d.path().join("typo.json")).unwrap_err());
     assert!(e.contains("typo.json") && e.contains("ctlr"), "{e}");
+
+    // a type error names where it is
+    std::fs::write(d.path().join("type.json"), r#"{"ctrl": [1, "x"]}"#).unwrap();
+    let e = msg(io::load_material(&d.path().join("type.json")).unwrap_err());
+    assert!(
+        e.contains("type.json: not a material file: ctrl[1]: invalid type: string"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -441,7 +449,11 @@ fn manifest_validation() {
         ),
         (
             r#"{"scenes": [{"output": "a.exr", "sphre": 4}]}"#,
-            "unknown field `sphre`",
+            "scenes[0].sphre: unknown field `sphre`",
+        ),
+        (
+            r#"{"scenes": [{"output": "a.exr"}, {"output": 5}]}"#,
+            "scenes[1].output: invalid type: integer `5`",
         ),
         (r#"{"scenes": [{"sphere": 4}]}"#, "missing field `output`"),
         (

@@ -80,6 +80,22 @@ pub fn material_from_ctrl(name: String, ctrl: &[f64]) -> std::result::Result<Mat
     })
 }
 
+/// Parses JSON text into `T`; the error names where in the document it is (`scenes[2].
+/// material: invalid type: ...`) as well as serde_json's line and column.
+pub fn from_slice<T: serde::de::DeserializeOwned>(bytes: &[u8]) -> std::result::Result<T, String> {
+    let mut de = serde_json::Deserializer::from_slice(bytes);
+    let value = serde_path_to_error::deserialize(&mut de).map_err(|e| {
+        let at = e.path().to_string();
+        if at == "." {
+            e.inner().to_string()
+        } else {
+            format!("{at}: {}", e.inner())
+        }
+    })?;
+    de.end().map_err(|e| e.to_string())?;
+    Ok(value)
+}
+
 /// Reads a material JSON file.
 pub fn read_material(path: &Path) -> Result<Material> {
     parse_material(path, &super::read_bytes(path)?)
@@ -88,8 +104,8 @@ pub fn read_material(path: &Path) -> Result<Material> {
 /// [`read_material`] on a file's bytes; `path` names the file in errors and, where the
 /// file has no name, the material.
 pub fn parse_material(path: &Path, bytes: &[u8]) -> Result<Material> {
-    let file: MaterialFile = serde_json::from_slice(bytes)
-        .map_err(|e| Error::file(path, format!("not a material file: {e}")))?;
+    let file: MaterialFile =
+        from_slice(bytes).map_err(|e| Error::file(path, format!("not a material file: {e}")))?;
     let name = file.name.unwrap_or_else(|| {
         path.file_stem()
             .map(|s| s.to_string_lossy().into_owned())

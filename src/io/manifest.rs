@@ -94,7 +94,7 @@ pub fn read(path: &Path, output_dir: Option<&Path>) -> Result<Manifest> {
 /// [`read`] on a file's bytes; `path` names the file in errors and is where relative paths
 /// resolve from.
 pub fn parse(path: &Path, bytes: &[u8], output_dir: Option<&Path>) -> Result<Manifest> {
-    let file: ManifestFile = serde_json::from_slice(bytes)
+    let file: ManifestFile = super::json::from_slice(bytes)
         .map_err(|e| Error::file(path, format!("not a valid manifest: {e}")))?;
     let err = |m: String| Error::file(path, m);
     // An empty parent (a manifest in the current folder) leaves relative paths as they are.
