@@ -44,6 +44,7 @@ pub mod presets;
 pub mod reference;
 pub mod scene;
 pub mod spline;
+pub mod splitmix;
 pub mod synth;
 
 pub use camera::Camera;
@@ -292,11 +293,7 @@ impl Renderer {
                 batch
                     .scenes()
                     .iter()
-                    .map(|s| Gradients {
-                        d_env: vec![[0.0; 3]; s.env.texels.len()],
-                        d_normals: vec![[0.0; 3]; s.normals.normals.len()],
-                        d_ctrl: [0.0; N_PARAMS],
-                    })
+                    .map(|s| Gradients::zeros(s.env.texels.len(), s.normals.normals.len()))
                     .collect(),
                 vec![None; batch.scenes().len()],
             ),

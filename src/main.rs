@@ -703,18 +703,20 @@ fn write_grads(
         created.extend(io::create_dirs(dir).map_err(runtime)?);
         let env = &scene.env;
         let n = &scene.normals;
-        let files = [
-            (wanted.env, "d_env.npy"),
-            (wanted.normals, "d_normals.npy"),
-            (wanted.ctrl, "d_material.json"),
-        ];
-        for (_, name) in files.iter().filter(|(w, _)| *w) {
-            let bytes = match *name {
-                "d_env.npy" => io::npy::encode_rgb(env.width, env.height, &g.d_env),
-                "d_normals.npy" => io::npy::encode_rgb(n.width, n.height, &g.d_normals),
-                _ => io::json::encode_gradient(&g.d_ctrl),
-            };
-            staged.push(io::stage(&dir.join(name), &bytes).map_err(runtime)?);
+        let mut files = Vec::new();
+        if wanted.env {
+            let bytes = io::npy::encode_rgb(env.width, env.height, &g.d_env);
+            files.push(("d_env.npy", bytes));
+        }
+        if wanted.normals {
+            let bytes = io::npy::encode_rgb(n.width, n.height, &g.d_normals);
+            files.push(("d_normals.npy", bytes));
+        }
+        if wanted.ctrl {
+            files.push(("d_material.json", io::json::encode_gradient(&g.d_ctrl)));
+        }
+        for (name, bytes) in &files {
+            staged.push(io::stage(&dir.join(name), bytes).map_err(runtime)?);
         }
     }
     for p in io::commit_all(staged).map_err(runtime)? {

@@ -71,16 +71,8 @@ impl NormalMap {
     /// silhouette, and every normal faces the camera (n.z > 0). Useful as a test and
     /// benchmark input with more varied normals than [`NormalMap::sphere`].
     pub fn bumpy(width: usize, height: usize, seed: u64) -> Self {
-        // splitmix64: a tiny deterministic generator, uniform in [0, 1)
-        let mut state = seed;
-        let mut uniform = move || {
-            state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
-            let mut z = state;
-            z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-            z ^= z >> 31;
-            (z >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = crate::splitmix::SplitMix(seed);
+        let mut uniform = move || rng.uniform();
         const WAVES: usize = 8;
         let tau = 2.0 * std::f64::consts::PI;
         // (kx, ky, amplitude, phase) per wave; each wave's slope is 0.25 (amplitude x
@@ -406,6 +398,15 @@ impl Default for Wanted {
 }
 
 impl Gradients {
+    /// Zeros for a map of `texels` texels and an image of `pixels` pixels.
+    pub fn zeros(texels: usize, pixels: usize) -> Self {
+        Gradients {
+            d_env: vec![[0.0; 3]; texels],
+            d_normals: vec![[0.0; 3]; pixels],
+            d_ctrl: [0.0; N_PARAMS],
+        }
+    }
+
     /// Sets the gradients `wanted` leaves out to zeros.
     pub fn keep(&mut self, wanted: Wanted) {
         if !wanted.env {

@@ -220,10 +220,8 @@ pub(super) fn backward(
     upstream: &[Image],
     wanted: Wanted,
 ) -> Result<Vec<Gradients>> {
-    let zeros = |prep: &Prepared| Gradients {
-        d_env: vec![[0.0f32; 3]; prep.env_height * prep.env_width],
-        d_normals: vec![[0.0f32; 3]; prep.width * prep.height],
-        d_ctrl: [0.0f32; N_PARAMS],
+    let zeros = |prep: &Prepared| {
+        Gradients::zeros(prep.env_height * prep.env_width, prep.width * prep.height)
     };
     if !wanted.any() {
         return Ok(preps.iter().map(zeros).collect());

@@ -450,14 +450,20 @@ impl Staged {
     }
 }
 
-/// Writes `bytes` to a temporary file in `path`'s folder; [`Staged::commit`] puts it in
-/// place. Dropping the [`Staged`] removes the temporary file.
+/// Writes `bytes` to a temporary file `.NAME.XXXX.tmp` in `path`'s folder (NAME: the
+/// destination's file name, so that what a killed run left can be found);
+/// [`Staged::commit`] puts it in place. Dropping the [`Staged`] removes the temporary file.
 pub fn stage(path: &Path, bytes: &[u8]) -> Result<Staged> {
     use std::io::Write;
     let dir = parent_dir(path);
     let fail = |e: std::io::Error| Error::file(path, format!("cannot write: {e}"));
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy())
+        .unwrap_or_default();
+    let prefix = format!(".{name}.");
     let mut builder = tempfile::Builder::new();
-    builder.prefix(".matedit-").suffix(".tmp");
+    builder.prefix(&prefix).suffix(".tmp");
     #[cfg(unix)]
     {
         // temporary files are private (0600); an output is an ordinary file: 0666 less

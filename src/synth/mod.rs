@@ -235,25 +235,10 @@ fn check_chunk(spec: &Spec, dir: &Path, c: u64, renderer: &str, hash: bool) -> O
     }
 }
 
-/// Writes `bytes` to `dir/name` through a temporary file `.name.XXXX.tmp` and a rename.
+/// Writes `bytes` to `dir/name` atomically, through a temporary file `.name.XXXX.tmp`
+/// ([`crate::io::stage`]) and a rename.
 fn write_atomic(dir: &Path, name: &str, bytes: &[u8]) -> Result<()> {
-    use std::io::Write;
-    let path = dir.join(name);
-    let fail = |e: std::io::Error| Error::file(&path, format!("cannot write: {e}"));
-    let mut builder = tempfile::Builder::new();
-    let prefix = format!(".{name}.");
-    builder.prefix(&prefix).suffix(".tmp");
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        builder.permissions(std::fs::Permissions::from_mode(0o666));
-    }
-    let mut file = builder.tempfile_in(dir).map_err(fail)?;
-    file.write_all(bytes).map_err(fail)?;
-    file.as_file().sync_all().map_err(fail)?;
-    file.persist(&path)
-        .map_err(|e| Error::file(&path, format!("cannot write: {}", e.error)))?;
-    Ok(())
+    crate::io::write_atomic(&dir.join(name), bytes)
 }
 
 /// Removes what a killed run left of chunk file `name`: its temporary files.

@@ -25,6 +25,7 @@ use crate::io::job::MAX_IMAGE_SIDE;
 use crate::io::resample::{self, EnvSize};
 use crate::material::{Material, N_PARAMS};
 use crate::scene::{NormalMap, Scene};
+pub use crate::splitmix::SplitMix;
 
 /// Samples per chunk when the spec does not say (or `count`, if smaller).
 pub const DEFAULT_CHUNK_SIZE: usize = 64;
@@ -161,30 +162,7 @@ pub struct Sample {
     pub params: Value,
 }
 
-/// splitmix64: a tiny generator whose stream is a pure function of its state.
-#[derive(Clone, Debug)]
-pub struct SplitMix(pub u64);
-
 impl SplitMix {
-    /// The next 64 bits.
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in [0, 1), 53 bits.
-    pub fn uniform(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    /// Uniform in 0..n (n > 0), by a 128-bit multiply.
-    pub fn below(&mut self, n: usize) -> usize {
-        ((u128::from(self.next_u64()) * n as u128) >> 64) as usize
-    }
-
     /// The generator of sample `k` under `seed`: independent of every other sample's.
     pub fn for_sample(seed: u64, k: u64) -> Self {
         let a = SplitMix(seed).next_u64();

@@ -2,25 +2,22 @@
 //! `assert_close`.
 #![allow(dead_code, reason = "each test file uses a part")]
 
+use matedit::splitmix::SplitMix;
 use matedit::{Camera, Convention, EnvMap, Material, NormalMap, Scene, material::idx};
 
-/// SplitMix64: a tiny seeded generator, enough for test inputs.
-pub struct Rng(u64);
+/// A seeded generator for test inputs (the library's splitmix64).
+pub struct Rng(SplitMix);
 
 impl Rng {
     pub fn new(seed: u64) -> Self {
-        Rng(seed)
+        Rng(SplitMix(seed))
     }
     pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
+        self.0.next_u64()
     }
     /// Uniform in [lo, hi).
     pub fn uniform(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * ((self.next_u64() >> 11) as f64 / (1u64 << 53) as f64)
+        lo + (hi - lo) * self.0.uniform()
     }
     /// A unit vector with z >= zmin.
     pub fn unit_facing(&mut self, zmin: f64) -> [f64; 3] {
