@@ -3,6 +3,8 @@
 //! the half vector, theta_d and the 18 spline coefficients; the foreground pixel list.
 //! Both backends start from a [`Prepared`] scene, so the per-pair loops are all they differ in.
 
+use rayon::prelude::*;
+
 use crate::camera::Camera;
 use crate::envmap::Convention;
 use crate::material::N_PARAMS;
@@ -151,6 +153,40 @@ pub fn coefficients(ctrl: &[f64; N_PARAMS], theta_d: f64) -> [f64; N_COEF_VALUES
     m
 }
 
+/// `[f64; 3]` of an f32 vector.
+fn to64(v: &[f32; 3]) -> [f64; 3] {
+    [v[0] as f64, v[1] as f64, v[2] as f64]
+}
+
+/// Whether normal `n` is a foreground pixel's: |n| >= [`BACKGROUND_EPS`].
+pub fn is_foreground(n: [f64; 3]) -> bool {
+    dot(n, n) >= BACKGROUND_EPS * BACKGROUND_EPS
+}
+
+/// The lights of an `env_height` x `env_width` lat-long map of radiances `env` under
+/// `convention`, in map order.
+fn map_lights(
+    env_height: usize,
+    env_width: usize,
+    convention: Convention,
+    env: &[[f64; 3]],
+) -> Vec<Light> {
+    let mut lights = Vec::with_capacity(env_height * env_width);
+    for r in 0..env_height {
+        for c in 0..env_width {
+            let (w, d_omega) = convention.texel(r, c, env_height, env_width);
+            let index = r * env_width + c;
+            lights.push(Light {
+                index,
+                w,
+                d_omega,
+                l: env[index],
+            });
+        }
+    }
+    lights
+}
+
 impl PixelRec {
     /// Pixel `index` with normal `n` seen from `wp`.
     pub fn new(index: usize, n: [f64; 3], wp: [f64; 3]) -> Self {
@@ -167,17 +203,46 @@ impl PixelRec {
 impl Prepared {
     /// Prepares a validated scene.
     pub fn new(scene: &Scene) -> Self {
-        let to64 = |v: &[f32; 3]| [v[0] as f64, v[1] as f64, v[2] as f64];
-        let normals: Vec<[f64; 3]> = scene.normals.normals.iter().map(to64).collect();
+        let (width, height) = (scene.normals.width, scene.normals.height);
+        let pixels = scene
+            .normals
+            .normals
+            .par_iter()
+            .enumerate()
+            .filter_map(|(index, n)| {
+                let n = to64(n);
+                is_foreground(n).then(|| {
+                    let wp = scene
+                        .camera
+                        .view_dir(index % width, index / width, width, height);
+                    PixelRec::new(index, n, wp)
+                })
+            })
+            .collect();
+        Prepared {
+            pixels,
+            ..Prepared::without_pixels(scene)
+        }
+    }
+
+    /// A validated scene's lights, material and camera with no pixels listed (its image
+    /// size kept): for a backend that takes the foreground pixels from the normal map
+    /// itself ([`is_foreground`], [`PixelRec::new`]).
+    pub fn without_pixels(scene: &Scene) -> Self {
         let env: Vec<[f64; 3]> = scene.env.texels.iter().map(to64).collect();
-        Prepared::from_parts(
-            scene.normals.width,
-            scene.normals.height,
-            &normals,
+        let lights = map_lights(
             scene.env.height,
             scene.env.width,
             scene.env.convention,
             &env,
+        );
+        Prepared::from_lights(
+            scene.normals.width,
+            scene.normals.height,
+            Vec::new(),
+            scene.env.height,
+            scene.env.width,
+            &lights,
             &scene.material.ctrl,
             scene.camera,
         )
@@ -197,23 +262,11 @@ impl Prepared {
         ctrl: &[f64; N_PARAMS],
         camera: Camera,
     ) -> Self {
-        let mut lights = Vec::with_capacity(env_height * env_width);
-        for r in 0..env_height {
-            for c in 0..env_width {
-                let (w, d_omega) = convention.texel(r, c, env_height, env_width);
-                let index = r * env_width + c;
-                lights.push(Light {
-                    index,
-                    w,
-                    d_omega,
-                    l: env[index],
-                });
-            }
-        }
+        let lights = map_lights(env_height, env_width, convention, env);
         let pixels = normals
             .iter()
             .enumerate()
-            .filter(|(_, n)| dot(**n, **n) >= BACKGROUND_EPS * BACKGROUND_EPS)
+            .filter(|(_, n)| is_foreground(**n))
             .map(|(index, &n)| {
                 PixelRec::new(
                     index,

@@ -1,8 +1,9 @@
 //! Host side of shaders/backward_texel.wgsl, reduce_ctrl.wgsl and backward_normal.wgsl.
 
-use super::buffers::{ParamsTable, bind, bind_scenes, output, reduce_slices, storage, tiled};
-use super::forward::{bases, batch_params, encode_per_pixel, scatter_pixels};
+use super::buffers::{ParamsTable, Slot};
+use super::forward::{Input, bases, batch_params, encode_per_pixel, range_of, tiled};
 use super::layout::{Params, Pixel, Texel};
+use super::pixels::Selection;
 use super::plan::SHARE_BYTES;
 use super::submission::Submission;
 use super::{GpuRenderer, Pass};
@@ -11,7 +12,6 @@ use crate::material::N_PARAMS;
 use crate::prepare::Prepared;
 use crate::scene::{Gradients, Image, Wanted};
 
-/// Readback slots of one scene's gradients.
 /// The GPU records of a scene's texels.
 fn texel_records(prep: &Prepared) -> Vec<Texel> {
     prep.texels
@@ -20,39 +20,32 @@ fn texel_records(prep: &Prepared) -> Vec<Texel> {
         .collect()
 }
 
-/// Encodes the per-texel gather over the pixels of each scene with a non-zero upstream
-/// gradient, the sums over slices, and the reduction of the shares into dLoss/dctrl: the
-/// whole batch in one dispatch of each where the planner allows, else scene by scene.
-/// Returns per scene the readback slots of d_env (one per texel range) and of d_ctrl.
+/// Readback slots of one scene's dLoss/dL (first and last) and dLoss/dctrl.
+type TexelSlots = (Slot, Slot, Slot);
+
+/// Encodes the per-texel gather over the pixels `active[b]` of each scene (those with a
+/// non-zero upstream gradient), the sums over slices, and the reduction of the shares
+/// into dLoss/dctrl: the whole batch in one dispatch of each where the planner allows,
+/// else scene by scene.
 fn encode_texel(
     r: &GpuRenderer,
-    preps: &[Prepared],
-    pixels: &[Vec<Pixel>],
+    inputs: &[Input<'_>],
+    active: &[Selection<'_>],
     sub: &mut Submission<'_>,
-) -> Vec<(Vec<usize>, usize)> {
-    let device = &r.ctx.device;
-    let active: Vec<Vec<Pixel>> = pixels
-        .iter()
-        .map(|px| {
-            px.iter()
-                .filter(|p| p.g[..3].iter().any(|&v| v != 0.0))
-                .copied()
-                .collect()
-        })
-        .collect();
-    let nt: Vec<usize> = preps.iter().map(|p| p.texels.len()).collect();
-    let na: Vec<usize> = active.iter().map(Vec::len).collect();
+) -> Result<Vec<TexelSlots>> {
+    let nt: Vec<usize> = inputs.iter().map(|i| i.prep.texels.len()).collect();
+    let na: Vec<usize> = active.iter().map(Selection::len).collect();
     let Some(shape) = r.planner.batch(Pass::BackwardTexel, &nt, &na) else {
-        return preps
+        return inputs
             .iter()
-            .zip(&active)
-            .map(|(prep, a)| encode_texel_scene(r, prep, a, sub))
+            .zip(active)
+            .map(|(input, a)| encode_texel_scene(r, input.prep, a, sub))
             .collect();
     };
-    let b = preps.len();
+    let b = inputs.len();
     let texel_base = bases(&nt);
     let total = shape.outer;
-    let scenes = batch_params(preps, &shape, &na, &nt, &na);
+    let scenes = batch_params(inputs, &shape, &na, &nt, &na);
     let mut table = ParamsTable::default();
     let offset = table.push_scenes(&scenes);
     // a batch's maps have one size: the shares of scene z start at z * nt
@@ -61,20 +54,26 @@ fn encode_texel(
         first: 1,
         ..scenes[0]
     });
-    let params = table.upload(device, "params");
-    let records: Vec<Texel> = preps.iter().flat_map(texel_records).collect();
-    let tex = storage(device, "texels", &records);
-    let pix = storage(device, "pixels", &active.concat());
+    let params = sub.params(&table);
+    let records: Vec<Texel> = inputs.iter().flat_map(|i| texel_records(i.prep)).collect();
+    let tex = sub.storage("texels", &records);
+    let n_active: usize = na.iter().sum();
+    let bytes = (n_active * size_of::<Pixel>()) as u64;
+    let pix = sub.upload_pixels("pixels", wgpu::BufferUsages::STORAGE, active, bytes)?;
     let slices = shape.slices as u64;
-    let d_env = output(device, "d_env", total as u64 * 16 * slices);
-    let d_share = output(device, "d_share", total as u64 * SHARE_BYTES * slices);
-    let d_ctrl = output(device, "d_ctrl", b as u64 * SHARE_BYTES);
-    let bg = bind_scenes(
-        r,
+    let d_env = sub.output("d_env", total as u64 * 16 * slices);
+    let d_share = sub.output("d_share", total as u64 * SHARE_BYTES * slices);
+    let d_ctrl = sub.output("d_ctrl", b as u64 * SHARE_BYTES);
+    let bg = sub.bind(
         Pass::BackwardTexel,
         &params,
         b,
-        &[&pix, &tex, &d_env, &d_share],
+        &[
+            (&pix, 0, None),
+            (&tex, 0, None),
+            (&d_env, 0, None),
+            (&d_share, 0, None),
+        ],
     );
     let [x, y, _] = shape.groups(nt.iter().copied().max().unwrap_or(0));
     let pairs = nt.iter().zip(&na).map(|(&t, &a)| (t * a) as u64).sum();
@@ -85,61 +84,55 @@ fn encode_texel(
     );
     let (env, share) = if shape.slices > 1 {
         (
-            reduce_slices(r, sub, scenes[0], &d_env, total, shape.slices),
-            reduce_slices(
-                r,
-                sub,
-                scenes[0],
-                &d_share,
-                total * N_PARAMS / 4,
-                shape.slices,
-            ),
+            sub.reduce_slices(scenes[0], &d_env, total, shape.slices),
+            sub.reduce_slices(scenes[0], &d_share, total * N_PARAMS / 4, shape.slices),
         )
     } else {
         (d_env, d_share)
     };
-    let reduce_bg = bind(r, Pass::ReduceCtrl, &params, &[&share, &d_ctrl]);
+    let reduce_bg = sub.bind(
+        Pass::ReduceCtrl,
+        &params,
+        1,
+        &[(&share, 0, None), (&d_ctrl, 0, None)],
+    );
     sub.compute(
         Pass::ReduceCtrl,
         0,
         &[(&reduce_bg, reduce_offset, [N_PARAMS as u32, 1, b as u32])],
     );
-    (0..b)
-        .map(|z| {
-            let (at, bytes) = (texel_base[z] as u64 * 16, nt[z] as u64 * 16);
-            let env_slot = sub.readback.copy_at(device, &mut sub.enc, &env, at, bytes);
-            let at = z as u64 * SHARE_BYTES;
-            let ctrl_slot = sub
-                .readback
-                .copy_at(device, &mut sub.enc, &d_ctrl, at, SHARE_BYTES);
-            (vec![env_slot], ctrl_slot)
-        })
-        .collect()
+    let env_slots: Vec<Slot> = (0..b)
+        .map(|z| sub.read(&env, texel_base[z] as u64 * 16, nt[z] as u64 * 16))
+        .collect();
+    Ok(env_slots
+        .into_iter()
+        .enumerate()
+        .map(|(z, e)| (e, e, sub.read(&d_ctrl, z as u64 * SHARE_BYTES, SHARE_BYTES)))
+        .collect())
 }
 
 /// [`encode_texel`] for one scene, texel range by texel range.
 fn encode_texel_scene(
     r: &GpuRenderer,
     prep: &Prepared,
-    active: &[Pixel],
+    active: &Selection<'_>,
     sub: &mut Submission<'_>,
-) -> (Vec<usize>, usize) {
-    let device = &r.ctx.device;
+) -> Result<TexelSlots> {
     let texels = texel_records(prep);
+    let n_active = active.len();
     let shape = r
         .planner
-        .gather(Pass::BackwardTexel, texels.len(), active.len());
+        .gather(Pass::BackwardTexel, texels.len(), n_active);
     let inner = shape.inner_ranges();
-    let pix: Vec<wgpu::Buffer> = inner
-        .iter()
-        .map(|q| tiled(r, "pixels", &active[q.clone()]))
-        .collect();
-    let d_ctrl = output(device, "d_ctrl", SHARE_BYTES);
+    let (pix, pix_at) = tiled::<Pixel>(r, sub, n_active, &inner, |sub, usage, bytes| {
+        sub.upload_pixels("pixels", usage, std::slice::from_ref(active), bytes)
+    })?;
+    let tex = sub.storage("texels", &texels);
+    let d_ctrl = sub.output("d_ctrl", SHARE_BYTES);
     let base = Params::for_scene(prep);
-    let mut d_env_slots = Vec::new();
+    let mut env_slots = Vec::new();
     for (ri, o) in shape.outer_ranges().into_iter().enumerate() {
-        let part = &texels[o];
-        let nt = part.len();
+        let nt = o.len();
         let mut table = ParamsTable::default();
         let offsets: Vec<u32> = inner
             .iter()
@@ -162,20 +155,25 @@ fn encode_texel_scene(
             first: (ri == 0) as u32,
             ..base
         });
-        let params = table.upload(device, "params");
-        let tex = storage(device, "texels", part);
+        let params = sub.params(&table);
+        let (tex_at, tex_size) = range_of::<Texel>(&o);
         let env_bytes = nt as u64 * 16;
         let slices = shape.slices as u64;
-        let d_env = output(device, "d_env", env_bytes * slices);
-        let d_share = output(device, "d_share", nt as u64 * SHARE_BYTES * slices);
-        let groups: Vec<wgpu::BindGroup> = pix
+        let d_env = sub.output("d_env", env_bytes * slices);
+        let d_share = sub.output("d_share", nt as u64 * SHARE_BYTES * slices);
+        let groups: Vec<wgpu::BindGroup> = pix_at
             .iter()
-            .map(|p| {
-                bind(
-                    r,
+            .map(|&(at, size)| {
+                sub.bind(
                     Pass::BackwardTexel,
                     &params,
-                    &[p, &tex, &d_env, &d_share],
+                    1,
+                    &[
+                        (&pix, at, size),
+                        (&tex, tex_at, tex_size),
+                        (&d_env, 0, None),
+                        (&d_share, 0, None),
+                    ],
                 )
             })
             .collect();
@@ -186,37 +184,47 @@ fn encode_texel_scene(
             .collect();
         sub.compute(
             Pass::BackwardTexel,
-            nt as u64 * active.len() as u64,
+            nt as u64 * n_active as u64,
             &dispatches,
         );
         let (env, share) = if shape.slices > 1 {
             (
-                reduce_slices(r, sub, base, &d_env, nt, shape.slices),
-                reduce_slices(r, sub, base, &d_share, nt * N_PARAMS / 4, shape.slices),
+                sub.reduce_slices(base, &d_env, nt, shape.slices),
+                sub.reduce_slices(base, &d_share, nt * N_PARAMS / 4, shape.slices),
             )
         } else {
             (d_env, d_share)
         };
-        let reduce_bg = bind(r, Pass::ReduceCtrl, &params, &[&share, &d_ctrl]);
+        let reduce_bg = sub.bind(
+            Pass::ReduceCtrl,
+            &params,
+            1,
+            &[(&share, 0, None), (&d_ctrl, 0, None)],
+        );
         sub.compute(
             Pass::ReduceCtrl,
             0,
             &[(&reduce_bg, reduce_offset, [N_PARAMS as u32, 1, 1])],
         );
-        d_env_slots.push(sub.readback.copy(device, &mut sub.enc, &env, env_bytes));
+        env_slots.push(sub.read(&env, 0, env_bytes));
     }
-    let ctrl_slot = sub
-        .readback
-        .copy(device, &mut sub.enc, &d_ctrl, SHARE_BYTES);
-    (d_env_slots, ctrl_slot)
+    let ctrl_slot = sub.read(&d_ctrl, 0, SHARE_BYTES);
+    Ok(match (env_slots.first(), env_slots.last()) {
+        (Some(&a), Some(&b)) => (a, b, ctrl_slot),
+        // no texels: an empty slot
+        _ => {
+            let s = sub.read(&d_ctrl, 0, 0);
+            (s, s, ctrl_slot)
+        }
+    })
 }
 
-/// Gradients per prepared scene for upstream images, in one submission: the per-texel
-/// passes (dLoss/dL, dLoss/dctrl) and the per-pixel pass (dLoss/dn) as far as `wanted`
-/// asks for them; what it leaves out is zeros.
+/// Gradients per scene for upstream images, in one submission: the per-texel passes
+/// (dLoss/dL, dLoss/dctrl) and the per-pixel pass (dLoss/dn) as far as `wanted` asks for
+/// them; what it leaves out is zeros.
 pub(super) fn backward(
     r: &GpuRenderer,
-    preps: &[Prepared],
+    inputs: &[Input<'_>],
     upstream: &[Image],
     wanted: Wanted,
 ) -> Result<Vec<Gradients>> {
@@ -224,42 +232,62 @@ pub(super) fn backward(
         Gradients::zeros(prep.env_height * prep.env_width, prep.width * prep.height)
     };
     if !wanted.any() {
-        return Ok(preps.iter().map(zeros).collect());
+        return Ok(inputs.iter().map(|i| zeros(i.prep)).collect());
     }
-    let mut sub = Submission::new(r, "backward");
-    let pixels: Vec<Vec<Pixel>> = preps
-        .iter()
-        .zip(upstream)
-        .map(|(prep, g)| {
-            prep.pixels
-                .iter()
-                .map(|p| Pixel::new(p, g.pixels[p.index]))
-                .collect()
-        })
-        .collect();
-    let texel = (wanted.env || wanted.ctrl).then(|| encode_texel(r, preps, &pixels, &mut sub));
-    let normal = wanted
-        .normals
-        .then(|| encode_per_pixel(r, Pass::BackwardNormal, preps, &pixels, &mut sub));
-    let (data, run) = sub.finish()?;
-    r.record(run);
-    Ok(preps
+    let texel_pass = wanted.env || wanted.ctrl;
+    let select = |active_only: bool| -> Vec<Selection<'_>> {
+        inputs
+            .iter()
+            .zip(upstream)
+            .map(|(i, u)| Selection::new(i.source, Some(u), active_only))
+            .collect()
+    };
+    let active = if texel_pass { select(true) } else { Vec::new() };
+    let all = if wanted.normals {
+        select(false)
+    } else {
+        Vec::new()
+    };
+    let mut sub = Submission::new(r, "backward")?;
+    let texel = if texel_pass {
+        Some(encode_texel(r, inputs, &active, &mut sub)?)
+    } else {
+        None
+    };
+    let normal = if wanted.normals {
+        Some(encode_per_pixel(
+            r,
+            Pass::BackwardNormal,
+            inputs,
+            &all,
+            &mut sub,
+        )?)
+    } else {
+        None
+    };
+    let (out, run) = sub.finish()?;
+    let grads = inputs
         .iter()
         .enumerate()
-        .map(|(b, prep)| {
+        .map(|(b, input)| {
+            let prep = input.prep;
             let mut g = zeros(prep);
             if let Some(texel) = &texel {
-                let (d_env, d_ctrl) = &texel[b];
-                let vals = d_env.iter().flat_map(|&i| data[i].chunks_exact(4));
+                let (first, last, d_ctrl) = texel[b];
+                let vals = out.span(first, last).chunks_exact(4);
                 for (t, v) in prep.texels.iter().zip(vals) {
                     g.d_env[t.index] = [v[0], v[1], v[2]];
                 }
-                g.d_ctrl.copy_from_slice(&data[*d_ctrl][..N_PARAMS]);
+                g.d_ctrl.copy_from_slice(&out.get(d_ctrl)[..N_PARAMS]);
             }
             if let Some(normal) = &normal {
-                g.d_normals = scatter_pixels(prep, &data, &normal[b]);
+                let (first, last) = normal[b];
+                g.d_normals = all[b].scatter(out.span(first, last), prep.width, prep.height);
             }
             g
         })
-        .collect())
+        .collect();
+    drop(out);
+    r.record(run);
+    Ok(grads)
 }

@@ -1,91 +1,203 @@
-//! Buffer helpers: uploads, per-dispatch params, and the one place that reads results back
-//! (staging buffer, map_async, poll).
+//! The buffers of a renderer, kept between calls: device buffers by role (a call's n-th
+//! buffer of a label gets the same buffer as the last call's, grown where it is too
+//! small), bind groups over them, staging buffers that large uploads are written straight
+//! into, and one readback buffer that every result of a call is copied to and read from
+//! where it is mapped. A call allocates nothing on the device once the shapes fit.
 
-use wgpu::util::DeviceExt;
+use std::collections::HashMap;
+use std::sync::MutexGuard;
 
-use super::layout::{CHUNK_BYTES, PARAMS_STRIDE, Params};
-use super::pipelines::Tiles;
-use super::submission::Submission;
-use super::{GpuRenderer, Pass};
+use super::layout::PARAMS_STRIDE;
+use super::layout::Params;
 use crate::error::{Error, Result};
 
-/// Smallest buffer made: bindings cannot be empty.
-const MIN_BYTES: u64 = 16;
+/// Smallest buffer made: bindings cannot be empty, and a binding must hold at least one
+/// element of the shader's array (a `Texel` is 256 bytes): a scene with no foreground
+/// pixels, no lit texels or no pixel with an upstream gradient still binds a valid buffer.
+/// tests/gpu_bindings.rs checks every binding of every pass against it.
+pub const MIN_BYTES: u64 = 256;
 
-/// A buffer holding `bytes` (at least [`MIN_BYTES`]), for `usage`.
-pub fn upload(
+/// Alignment of every upload and readback region: a multiple of wgpu's copy and map
+/// alignments and of the storage and uniform offset alignments.
+const ALIGN: u64 = 256;
+
+/// One binding of a bind group: binding index, buffer, offset and size (`None`: the rest).
+pub type Entry<'a> = (u32, &'a wgpu::Buffer, u64, Option<u64>);
+
+/// A bind group's pass and bindings.
+type GroupKey = (&'static str, Vec<(u32, wgpu::Buffer, u64, Option<u64>)>);
+
+/// The buffers and bind groups a renderer keeps.
+#[derive(Default)]
+pub struct Pool {
+    kept: HashMap<(&'static str, u32), wgpu::Buffer>,
+    uses: HashMap<&'static str, u32>,
+    groups: HashMap<GroupKey, wgpu::BindGroup>,
+    readback: Option<wgpu::Buffer>,
+    /// Pixel records computed before they are copied to a staging buffer.
+    pub scratch: Vec<super::layout::Pixel>,
+}
+
+/// `bytes` made a valid buffer size: at least [`MIN_BYTES`], whole [`ALIGN`]s.
+fn buffer_size(bytes: u64) -> u64 {
+    bytes.max(MIN_BYTES).next_multiple_of(ALIGN)
+}
+
+/// A buffer of at least `bytes` for `usage`: `old` where it fits, else a new one with a
+/// quarter more room than `old` had, so that slowly growing inputs do not make one every
+/// call.
+fn fit(
     device: &wgpu::Device,
+    old: Option<&wgpu::Buffer>,
     label: &str,
-    bytes: &[u8],
     usage: wgpu::BufferUsages,
-) -> wgpu::Buffer {
-    if (bytes.len() as u64) < MIN_BYTES {
-        let mut padded = bytes.to_vec();
-        padded.resize(MIN_BYTES as usize, 0);
-        return device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some(label),
-            contents: &padded,
-            usage,
-        });
-    }
-    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some(label),
-        contents: bytes,
-        usage,
-    })
-}
-
-/// A read-only storage buffer holding `records`.
-pub fn storage<T: bytemuck::Pod>(
-    device: &wgpu::Device,
-    label: &str,
-    records: &[T],
-) -> wgpu::Buffer {
-    upload(
-        device,
-        label,
-        bytemuck::cast_slice(records),
-        wgpu::BufferUsages::STORAGE,
-    )
-}
-
-/// The looped-over records of one inner range of a gather pass, as it reads them: a
-/// storage buffer ([`Tiles::Workgroup`]) or one uniform chunk, padded ([`Tiles::Uniform`]).
-pub fn tiled<T: bytemuck::Pod + Default>(
-    r: &GpuRenderer,
-    label: &str,
-    records: &[T],
-) -> wgpu::Buffer {
-    let device = &r.ctx.device;
-    match r.planner.tiles {
-        Tiles::Workgroup => storage(device, label, records),
-        Tiles::Uniform => {
-            let mut padded = records.to_vec();
-            padded.resize(CHUNK_BYTES as usize / size_of::<T>(), T::default());
-            upload(
-                device,
-                label,
-                bytemuck::cast_slice(&padded),
-                wgpu::BufferUsages::UNIFORM,
-            )
+    bytes: u64,
+    mapped: bool,
+) -> (wgpu::Buffer, bool) {
+    let need = buffer_size(bytes);
+    match old {
+        Some(b) if b.size() >= need && b.usage() == usage => (b.clone(), false),
+        _ => {
+            let grown = old.map_or(0, |b| (b.size() + b.size() / 4).next_multiple_of(ALIGN));
+            let b = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: need.max(grown),
+                usage,
+                mapped_at_creation: mapped,
+            });
+            (b, true)
         }
     }
 }
 
-/// A zeroed read-write storage buffer of `bytes` that can be copied out.
-pub fn output(device: &wgpu::Device, label: &str, bytes: u64) -> wgpu::Buffer {
-    device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some(label),
-        size: bytes.max(MIN_BYTES),
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-        mapped_at_creation: false,
-    })
+impl Pool {
+    /// Starts a call: the n-th buffer of each label is again the first one's.
+    pub fn begin(&mut self) {
+        self.uses.clear();
+    }
+
+    /// The call's next buffer of `label`, of at least `bytes`, for `usage` (plus
+    /// `COPY_DST`, so that uploads can reach it). Its contents are whatever the last
+    /// call left: every pass writes what it reads back.
+    pub fn buffer(
+        &mut self,
+        device: &wgpu::Device,
+        label: &'static str,
+        usage: wgpu::BufferUsages,
+        bytes: u64,
+    ) -> wgpu::Buffer {
+        let n = self.uses.entry(label).or_default();
+        let key = (label, *n);
+        *n += 1;
+        let usage = usage | wgpu::BufferUsages::COPY_DST;
+        let (b, new) = fit(device, self.kept.get(&key), label, usage, bytes, false);
+        if new {
+            // groups over the old buffer would keep it alive
+            self.groups.clear();
+            self.kept.insert(key, b.clone());
+        }
+        b
+    }
+
+    /// A bind group of `layout` (pass `pass`) over `entries`, made once per set of
+    /// buffers and ranges.
+    pub fn bind(
+        &mut self,
+        device: &wgpu::Device,
+        pass: &'static str,
+        layout: &wgpu::BindGroupLayout,
+        entries: &[Entry<'_>],
+    ) -> wgpu::BindGroup {
+        let key = (
+            pass,
+            entries
+                .iter()
+                .map(|&(i, b, o, s)| (i, b.clone(), o, s))
+                .collect::<Vec<_>>(),
+        );
+        if let Some(g) = self.groups.get(&key) {
+            return g.clone();
+        }
+        let bindings: Vec<wgpu::BindGroupEntry<'_>> = entries
+            .iter()
+            .map(|&(binding, buffer, offset, size)| wgpu::BindGroupEntry {
+                binding,
+                resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                    buffer,
+                    offset,
+                    size: size.and_then(wgpu::BufferSize::new),
+                }),
+            })
+            .collect();
+        let g = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some(pass),
+            layout,
+            entries: &bindings,
+        });
+        self.groups.insert(key, g.clone());
+        g
+    }
+
+    /// The call's next staging buffer of `label` for an upload of `bytes`, mapped for
+    /// writing.
+    pub fn staging(
+        &mut self,
+        device: &wgpu::Device,
+        label: &'static str,
+        bytes: u64,
+    ) -> Result<wgpu::Buffer> {
+        let n = self.uses.entry(label).or_default();
+        let key = (label, *n);
+        *n += 1;
+        let usage = wgpu::BufferUsages::MAP_WRITE | wgpu::BufferUsages::COPY_SRC;
+        let (b, new) = fit(device, self.kept.get(&key), label, usage, bytes, true);
+        if new {
+            self.kept.insert(key, b.clone());
+        } else if let Err(e) = map(device, &b, wgpu::MapMode::Write) {
+            // left mapped by a call that failed, or lost: the next call makes a new one
+            self.kept.remove(&key);
+            return Err(e);
+        }
+        Ok(b)
+    }
+
+    /// The readback buffer, unmapped, of at least `bytes`.
+    pub fn readback(&mut self, device: &wgpu::Device, bytes: u64) -> wgpu::Buffer {
+        let usage = wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST;
+        let (b, new) = fit(
+            device,
+            self.readback.as_ref(),
+            "readback",
+            usage,
+            bytes,
+            false,
+        );
+        if new {
+            self.readback = Some(b.clone());
+        }
+        b
+    }
+}
+
+/// Maps the whole of `buffer` and waits for it.
+pub fn map(device: &wgpu::Device, buffer: &wgpu::Buffer, mode: wgpu::MapMode) -> Result<()> {
+    let (tx, rx) = std::sync::mpsc::channel();
+    buffer.map_async(mode, .., move |r| {
+        let _ = tx.send(r);
+    });
+    device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| Error::Gpu(format!("waiting for the device: {e}")))?;
+    rx.recv()
+        .map_err(|e| Error::Gpu(format!("mapping a buffer: {e}")))?
+        .map_err(|e| Error::Gpu(format!("mapping a buffer: {e}")))
 }
 
 /// Per-dispatch [`Params`], [`PARAMS_STRIDE`] bytes apart, bound with a dynamic offset.
 #[derive(Default)]
 pub struct ParamsTable {
-    bytes: Vec<u8>,
+    /// The table's bytes.
+    pub bytes: Vec<u8>,
 }
 
 impl ParamsTable {
@@ -103,173 +215,98 @@ impl ParamsTable {
         self.bytes.resize(end, 0);
         offset as u32
     }
-
-    /// The buffer (uniform, or storage for the batched gather passes).
-    pub fn upload(&self, device: &wgpu::Device, label: &str) -> wgpu::Buffer {
-        upload(
-            device,
-            label,
-            &self.bytes,
-            wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::STORAGE,
-        )
-    }
 }
 
-/// A binding of the whole of `buffer`.
-pub fn whole(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
-    wgpu::BindGroupEntry {
-        binding,
-        resource: buffer.as_entire_binding(),
-    }
-}
-
-/// A binding of the first `size` bytes of `buffer` (for dynamic offsets).
-pub fn window(binding: u32, buffer: &wgpu::Buffer, size: u64) -> wgpu::BindGroupEntry<'_> {
-    wgpu::BindGroupEntry {
-        binding,
-        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-            buffer,
-            offset: 0,
-            size: wgpu::BufferSize::new(size),
-        }),
-    }
-}
-
-/// Buffers to read back after one submission.
+/// Results to read back after one submission: regions of device buffers, copied one
+/// after another into the pool's readback buffer.
 #[derive(Default)]
 pub struct Readback {
-    staging: Vec<(wgpu::Buffer, u64)>,
+    requests: Vec<(wgpu::Buffer, u64, u64)>,
+    bytes: u64,
+}
+
+/// A readback slot: where a region lies in the readback buffer.
+#[derive(Clone, Copy, Debug)]
+pub struct Slot {
+    at: u64,
+    bytes: u64,
 }
 
 impl Readback {
-    /// Copies the first `bytes` of `src` to a new staging buffer; returns its slot.
-    pub fn copy(
-        &mut self,
+    /// Asks for `bytes` of `src` from byte `offset` (both multiples of 4); returns its
+    /// slot. Slots asked for one after another lie one after another.
+    pub fn request(&mut self, src: &wgpu::Buffer, offset: u64, bytes: u64) -> Slot {
+        let slot = Slot {
+            at: self.bytes,
+            bytes,
+        };
+        self.requests.push((src.clone(), offset, bytes));
+        self.bytes += bytes;
+        slot
+    }
+
+    /// Encodes the copies into `readback` (at least as large as every region together).
+    pub fn encode(&self, enc: &mut wgpu::CommandEncoder, readback: &wgpu::Buffer) {
+        let mut at = 0;
+        for (src, offset, bytes) in &self.requests {
+            if *bytes > 0 {
+                enc.copy_buffer_to_buffer(src, *offset, readback, at, *bytes);
+            }
+            at += bytes;
+        }
+    }
+
+    /// Bytes of every region together.
+    pub fn bytes(&self) -> u64 {
+        self.bytes
+    }
+}
+
+/// The readback buffer, mapped: every slot's values. Holds the renderer's buffers until
+/// it is dropped, then unmaps.
+pub struct Readout<'a> {
+    view: Option<wgpu::BufferView>,
+    buffer: wgpu::Buffer,
+    _pool: MutexGuard<'a, Pool>,
+}
+
+impl<'a> Readout<'a> {
+    /// Maps `buffer` (after the submission that fills it), holding `pool`.
+    pub fn map(
         device: &wgpu::Device,
-        enc: &mut wgpu::CommandEncoder,
-        src: &wgpu::Buffer,
-        bytes: u64,
-    ) -> usize {
-        self.copy_at(device, enc, src, 0, bytes)
+        buffer: wgpu::Buffer,
+        pool: MutexGuard<'a, Pool>,
+    ) -> Result<Self> {
+        map(device, &buffer, wgpu::MapMode::Read)?;
+        let view = buffer
+            .get_mapped_range(..)
+            .map_err(|e| Error::Gpu(format!("mapping the readback buffer: {e}")))?;
+        Ok(Readout {
+            view: Some(view),
+            buffer,
+            _pool: pool,
+        })
     }
 
-    /// Copies `bytes` of `src` from byte `offset` (a multiple of 4) to a new staging
-    /// buffer; returns its slot.
-    pub fn copy_at(
-        &mut self,
-        device: &wgpu::Device,
-        enc: &mut wgpu::CommandEncoder,
-        src: &wgpu::Buffer,
-        offset: u64,
-        bytes: u64,
-    ) -> usize {
-        let size = bytes
-            .max(MIN_BYTES)
-            .next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT);
-        let staging = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("readback"),
-            size,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        // the padding past a short source's end is not copied (nothing at all for a scene
-        // of no records at the end of a batch)
-        let size = size.min(src.size().saturating_sub(offset));
-        if size > 0 {
-            enc.copy_buffer_to_buffer(src, offset, &staging, 0, size);
-        }
-        self.staging.push((staging, bytes));
-        self.staging.len() - 1
+    /// The f32 values from the start of `first` to the end of `last` (slots asked for one
+    /// after another).
+    pub fn span(&self, first: Slot, last: Slot) -> &[f32] {
+        let bytes = match &self.view {
+            Some(v) => &v[first.at as usize..(last.at + last.bytes) as usize],
+            None => &[],
+        };
+        bytemuck::cast_slice(bytes)
     }
 
-    /// Waits for the device and returns every slot's f32 values.
-    pub fn finish(self, device: &wgpu::Device) -> Result<Vec<Vec<f32>>> {
-        let (tx, rx) = std::sync::mpsc::channel();
-        for (i, (buf, _)) in self.staging.iter().enumerate() {
-            let tx = tx.clone();
-            buf.map_async(wgpu::MapMode::Read, .., move |r| {
-                let _ = tx.send((i, r));
-            });
-        }
-        drop(tx);
-        device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| Error::Gpu(format!("waiting for the device: {e}")))?;
-        for (i, r) in rx.iter() {
-            r.map_err(|e| Error::Gpu(format!("reading back buffer {i}: {e}")))?;
-        }
-        let mut out = Vec::with_capacity(self.staging.len());
-        for (buf, bytes) in &self.staging {
-            let view = buf
-                .get_mapped_range(..)
-                .map_err(|e| Error::Gpu(format!("mapping a readback buffer: {e}")))?;
-            out.push(bytemuck::pod_collect_to_vec::<u8, f32>(
-                &view[..*bytes as usize],
-            ));
-            drop(view);
-            buf.unmap();
-        }
-        Ok(out)
+    /// The f32 values of `slot`.
+    pub fn get(&self, slot: Slot) -> &[f32] {
+        self.span(slot, slot)
     }
 }
 
-/// A bind group of `pass`'s layout: `params` at binding 0 (one [`Params`] at a dynamic
-/// offset), then the whole of each of `buffers` in order.
-pub fn bind(
-    r: &GpuRenderer,
-    pass: Pass,
-    params: &wgpu::Buffer,
-    buffers: &[&wgpu::Buffer],
-) -> wgpu::BindGroup {
-    bind_scenes(r, pass, params, 1, buffers)
-}
-
-/// [`bind`] with `scenes` [`Params`] at binding 0 (a batched dispatch's).
-pub fn bind_scenes(
-    r: &GpuRenderer,
-    pass: Pass,
-    params: &wgpu::Buffer,
-    scenes: usize,
-    buffers: &[&wgpu::Buffer],
-) -> wgpu::BindGroup {
-    let mut entries = vec![window(0, params, (scenes * size_of::<Params>()) as u64)];
-    entries.extend(
-        buffers
-            .iter()
-            .enumerate()
-            .map(|(k, b)| whole(k as u32 + 1, b)),
-    );
-    r.ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some(pass.name()),
-        layout: &r.pipeline(pass).layout,
-        entries: &entries,
-    })
-}
-
-/// Encodes reduce_slices over `parts` (`slices` slices of `elements` vec4 elements each);
-/// returns the buffer of the sums.
-pub fn reduce_slices(
-    r: &GpuRenderer,
-    sub: &mut Submission<'_>,
-    base: Params,
-    parts: &wgpu::Buffer,
-    elements: usize,
-    slices: u32,
-) -> wgpu::Buffer {
-    let device = &r.ctx.device;
-    let mut table = ParamsTable::default();
-    let offset = table.push(Params {
-        n_pixels: elements as u32,
-        n_slices: slices,
-        ..base
-    });
-    let params = table.upload(device, "reduce_slices params");
-    let total = output(device, "slice sums", elements as u64 * 16);
-    let bg = bind(r, Pass::ReduceSlices, &params, &[parts, &total]);
-    sub.compute(
-        Pass::ReduceSlices,
-        0,
-        &[(&bg, offset, r.planner.reduce_groups(elements))],
-    );
-    total
+impl Drop for Readout<'_> {
+    fn drop(&mut self) {
+        self.view = None;
+        self.buffer.unmap();
+    }
 }

@@ -1,12 +1,24 @@
 //! Host side of shaders/forward.wgsl, and the encoding it shares with backward_normal.
 
-use super::buffers::{ParamsTable, bind, bind_scenes, output, reduce_slices, storage, tiled};
-use super::layout::{Params, Pixel, Texel};
-use super::submission::Submission;
+use super::buffers::{MIN_BYTES, ParamsTable, Slot};
+use super::layout::{CHUNK_BYTES, Params, Pixel, Texel};
+use super::pipelines::Tiles;
+use super::pixels::{Selection, Source};
+use super::submission::{Submission, write_records};
 use super::{GpuRenderer, Pass};
 use crate::error::Result;
 use crate::prepare::Prepared;
 use crate::scene::Image;
+
+/// One scene of a call: its prepared lights, material and camera, and where its pixels
+/// come from.
+pub struct Input<'a> {
+    /// The scene's lights, material and camera (its pixel list is used only by
+    /// [`Source::Listed`]).
+    pub prep: &'a Prepared,
+    /// Its pixels.
+    pub source: Source<'a>,
+}
 
 /// The lit texels of a scene as GPU records.
 fn lit_texels(prep: &Prepared) -> Vec<Texel> {
@@ -32,17 +44,17 @@ pub(super) fn bases(counts: &[usize]) -> Vec<usize> {
 /// texels at their starts in the concatenated buffers, its slices of `inner[z]` records
 /// (the looped-over ones) as long as they would be were it alone.
 pub(super) fn batch_params(
-    preps: &[Prepared],
+    inputs: &[Input<'_>],
     shape: &super::Shape,
     np: &[usize],
     nt: &[usize],
     inner: &[usize],
 ) -> Vec<Params> {
     let (pixel_base, texel_base) = (bases(np), bases(nt));
-    preps
+    inputs
         .iter()
         .enumerate()
-        .map(|(z, prep)| Params {
+        .map(|(z, input)| Params {
             n_pixels: np[z] as u32,
             n_texels: nt[z] as u32,
             first: 1,
@@ -51,64 +63,104 @@ pub(super) fn batch_params(
             pixel_base: pixel_base[z] as u32,
             texel_base: texel_base[z] as u32,
             slice_stride: shape.outer as u32,
-            ..Params::for_scene(prep)
+            ..Params::for_scene(input.prep)
         })
         .collect()
 }
 
-/// Encodes a per-pixel pass (forward or backward_normal) over `pixels[b]` of each scene
-/// `preps[b]` against its lit texels: the whole batch in one dispatch where the planner
-/// allows ([`super::Planner::batch`]), else scene by scene in the planner's ranges and
-/// slices; the slices then added by reduce_slices. Returns, per scene, the readback slot
-/// of each pixel range, in order.
+/// Where a binding lies in its buffer: offset and size.
+pub(super) type Window = (u64, Option<u64>);
+
+/// The binding of records `range` of `T` in a buffer that holds them from its start
+/// (range starts are whole workgroups, so the offset is aligned): (offset, size).
+pub(super) fn range_of<T>(range: &std::ops::Range<usize>) -> Window {
+    let size = size_of::<T>() as u64;
+    let bytes = (range.len() as u64 * size).max(MIN_BYTES);
+    (range.start as u64 * size, Some(bytes))
+}
+
+/// The looped-over records of one scene, all its inner ranges in one buffer as the gather
+/// passes read them: storage ([`Tiles::Workgroup`]), or one uniform chunk per range
+/// ([`Tiles::Uniform`]: a chunk's records fill [`CHUNK_BYTES`] exactly, so the chunks are
+/// the records in order, the last padded). Returns the buffer and each range's binding.
+pub(super) fn tiled<T>(
+    r: &GpuRenderer,
+    sub: &mut Submission<'_>,
+    n: usize,
+    ranges: &[std::ops::Range<usize>],
+    upload: impl FnOnce(&mut Submission<'_>, wgpu::BufferUsages, u64) -> Result<wgpu::Buffer>,
+) -> Result<(wgpu::Buffer, Vec<Window>)> {
+    let bytes = (n * size_of::<T>()) as u64;
+    Ok(match r.planner.tiles {
+        Tiles::Workgroup => {
+            let b = upload(sub, wgpu::BufferUsages::STORAGE, bytes)?;
+            (b, ranges.iter().map(range_of::<T>).collect())
+        }
+        Tiles::Uniform => {
+            let total = ranges.len() as u64 * CHUNK_BYTES;
+            let b = upload(sub, wgpu::BufferUsages::UNIFORM, total)?;
+            let chunks = (0..ranges.len() as u64)
+                .map(|k| (k * CHUNK_BYTES, Some(CHUNK_BYTES)))
+                .collect();
+            (b, chunks)
+        }
+    })
+}
+
+/// Encodes a per-pixel pass (forward or backward_normal) over the pixels `sels[b]` of
+/// each scene `inputs[b]` against its lit texels: the whole batch in one dispatch where the
+/// planner allows ([`super::Planner::batch`]), else scene by scene in the planner's
+/// ranges and slices; the slices then added by reduce_slices. Returns, per scene, the
+/// first and last readback slots of its results (one vec4 per selected pixel, in order).
 pub(super) fn encode_per_pixel(
     r: &GpuRenderer,
     pass: Pass,
-    preps: &[Prepared],
-    pixels: &[Vec<Pixel>],
+    inputs: &[Input<'_>],
+    sels: &[Selection<'_>],
     sub: &mut Submission<'_>,
-) -> Vec<Vec<usize>> {
-    let lit: Vec<Vec<Texel>> = preps.iter().map(lit_texels).collect();
-    let np: Vec<usize> = pixels.iter().map(Vec::len).collect();
+) -> Result<Vec<(Slot, Slot)>> {
+    let lit: Vec<Vec<Texel>> = inputs.iter().map(|i| lit_texels(i.prep)).collect();
+    let np: Vec<usize> = sels.iter().map(Selection::len).collect();
     let nl: Vec<usize> = lit.iter().map(Vec::len).collect();
     let Some(shape) = r.planner.batch(pass, &np, &nl) else {
-        return preps
+        return inputs
             .iter()
-            .zip(pixels)
+            .zip(sels)
             .zip(&lit)
-            .map(|((prep, px), lit)| encode_scene(r, pass, prep, px, lit, sub))
+            .map(|((input, sel), lit)| encode_scene(r, pass, input.prep, sel, lit, sub))
             .collect();
     };
-    let device = &r.ctx.device;
     let pixel_base = bases(&np);
     let total = shape.outer;
-    let scenes = batch_params(preps, &shape, &np, &nl, &nl);
+    let scenes = batch_params(inputs, &shape, &np, &nl, &nl);
     let mut table = ParamsTable::default();
     let offset = table.push_scenes(&scenes);
-    let params = table.upload(device, "params");
-    let tex = storage(device, "lit texels", &lit.concat());
-    let pix = storage(device, "pixels", &pixels.concat());
-    let parts = output(
-        device,
-        pass.name(),
-        (total * 16) as u64 * shape.slices as u64,
+    let params = sub.params(&table);
+    let tex = sub.storage("lit texels", &lit.concat());
+    let bytes = (total * size_of::<Pixel>()) as u64;
+    let pix = sub.upload_pixels("pixels", wgpu::BufferUsages::STORAGE, sels, bytes)?;
+    let parts = sub.output(pass.name(), (total * 16) as u64 * shape.slices as u64);
+    let bg = sub.bind(
+        pass,
+        &params,
+        inputs.len(),
+        &[(&tex, 0, None), (&pix, 0, None), (&parts, 0, None)],
     );
-    let bg = bind_scenes(r, pass, &params, preps.len(), &[&tex, &pix, &parts]);
     let max_np = np.iter().copied().max().unwrap_or(0);
     let [x, y, _] = shape.groups(max_np);
     let pairs = np.iter().zip(&nl).map(|(&p, &l)| (p * l) as u64).sum();
-    sub.compute(pass, pairs, &[(&bg, offset, [x, y, preps.len() as u32])]);
+    sub.compute(pass, pairs, &[(&bg, offset, [x, y, inputs.len() as u32])]);
     let out = if shape.slices > 1 {
-        reduce_slices(r, sub, scenes[0], &parts, total, shape.slices)
+        sub.reduce_slices(scenes[0], &parts, total, shape.slices)
     } else {
         parts
     };
-    (0..preps.len())
+    Ok((0..inputs.len())
         .map(|b| {
-            let (at, bytes) = (pixel_base[b] as u64 * 16, np[b] as u64 * 16);
-            vec![sub.readback.copy_at(device, &mut sub.enc, &out, at, bytes)]
+            let s = sub.read(&out, pixel_base[b] as u64 * 16, np[b] as u64 * 16);
+            (s, s)
         })
-        .collect()
+        .collect())
 }
 
 /// [`encode_per_pixel`] for one scene, range by range.
@@ -116,22 +168,27 @@ fn encode_scene(
     r: &GpuRenderer,
     pass: Pass,
     prep: &Prepared,
-    pixels: &[Pixel],
+    sel: &Selection<'_>,
     lit: &[Texel],
     sub: &mut Submission<'_>,
-) -> Vec<usize> {
-    let device = &r.ctx.device;
-    let shape = r.planner.gather(pass, pixels.len(), lit.len());
+) -> Result<(Slot, Slot)> {
+    let n_pixels = sel.len();
+    let shape = r.planner.gather(pass, n_pixels, lit.len());
     let inner = shape.inner_ranges();
-    let texels: Vec<wgpu::Buffer> = inner
-        .iter()
-        .map(|t| tiled(r, "lit texels", &lit[t.clone()]))
-        .collect();
+    let (texels, tex_at) = tiled::<Texel>(r, sub, lit.len(), &inner, |sub, usage, bytes| {
+        sub.upload_with("lit texels", usage, bytes, |out| write_records(out, lit))
+    })?;
+    let bytes = (n_pixels * size_of::<Pixel>()) as u64;
+    let pix = sub.upload_pixels(
+        "pixels",
+        wgpu::BufferUsages::STORAGE,
+        std::slice::from_ref(sel),
+        bytes,
+    )?;
     let base = Params::for_scene(prep);
     let mut slots = Vec::new();
     for o in shape.outer_ranges() {
-        let part = &pixels[o];
-        let n = part.len();
+        let n = o.len();
         let mut table = ParamsTable::default();
         let offsets: Vec<u32> = inner
             .iter()
@@ -148,13 +205,24 @@ fn encode_scene(
                 })
             })
             .collect();
-        let params = table.upload(device, "params");
-        let pix = storage(device, "pixels", part);
+        let params = sub.params(&table);
         let out_bytes = n as u64 * 16;
-        let parts = output(device, pass.name(), out_bytes * shape.slices as u64);
-        let groups: Vec<wgpu::BindGroup> = texels
+        let parts = sub.output(pass.name(), out_bytes * shape.slices as u64);
+        let (pix_at, pix_size) = range_of::<Pixel>(&o);
+        let groups: Vec<wgpu::BindGroup> = tex_at
             .iter()
-            .map(|tex| bind(r, pass, &params, &[tex, &pix, &parts]))
+            .map(|&(at, size)| {
+                sub.bind(
+                    pass,
+                    &params,
+                    1,
+                    &[
+                        (&texels, at, size),
+                        (&pix, pix_at, pix_size),
+                        (&parts, 0, None),
+                    ],
+                )
+            })
             .collect();
         let dispatches: Vec<_> = groups
             .iter()
@@ -163,44 +231,41 @@ fn encode_scene(
             .collect();
         sub.compute(pass, n as u64 * lit.len() as u64, &dispatches);
         let out = if shape.slices > 1 {
-            reduce_slices(r, sub, base, &parts, n, shape.slices)
+            sub.reduce_slices(base, &parts, n, shape.slices)
         } else {
             parts
         };
-        slots.push(sub.readback.copy(device, &mut sub.enc, &out, out_bytes));
+        slots.push(sub.read(&out, 0, out_bytes));
     }
-    slots
+    Ok(match (slots.first(), slots.last()) {
+        (Some(&a), Some(&b)) => (a, b),
+        // no pixels: an empty slot
+        _ => {
+            let s = sub.read(&pix, 0, 0);
+            (s, s)
+        }
+    })
 }
 
-/// Scatters per-pixel vec4 results (in `prep.pixels` order, read back into `data` at
-/// `slots`) into a full row-major image.
-pub(super) fn scatter_pixels(prep: &Prepared, data: &[Vec<f32>], slots: &[usize]) -> Vec<[f32; 3]> {
-    let mut img = vec![[0.0f32; 3]; prep.width * prep.height];
-    let vals = slots.iter().flat_map(|&i| data[i].chunks_exact(4));
-    for (px, v) in prep.pixels.iter().zip(vals) {
-        img[px.index] = [v[0], v[1], v[2]];
-    }
-    img
-}
-
-/// One image per prepared scene, in one submission.
-pub(super) fn forward(r: &GpuRenderer, preps: &[Prepared]) -> Result<Vec<Image>> {
-    let mut sub = Submission::new(r, "forward");
-    let pixels: Vec<Vec<Pixel>> = preps
+/// One image per scene, in one submission.
+pub(super) fn forward(r: &GpuRenderer, inputs: &[Input<'_>]) -> Result<Vec<Image>> {
+    let sels: Vec<Selection<'_>> = inputs
         .iter()
-        .map(|prep| {
-            prep.pixels
-                .iter()
-                .map(|p| Pixel::new(p, [0.0; 3]))
-                .collect()
+        .map(|i| Selection::new(i.source, None, false))
+        .collect();
+    let mut sub = Submission::new(r, "forward")?;
+    let slots = encode_per_pixel(r, Pass::Forward, inputs, &sels, &mut sub)?;
+    let (out, run) = sub.finish()?;
+    let images = inputs
+        .iter()
+        .zip(&sels)
+        .zip(slots)
+        .map(|((input, sel), (first, last))| {
+            let p = input.prep;
+            p.image(sel.scatter(out.span(first, last), p.width, p.height))
         })
         .collect();
-    let slots = encode_per_pixel(r, Pass::Forward, preps, &pixels, &mut sub);
-    let (data, run) = sub.finish()?;
+    drop(out);
     r.record(run);
-    Ok(preps
-        .iter()
-        .zip(slots)
-        .map(|(prep, s)| prep.image(scatter_pixels(prep, &data, &s)))
-        .collect())
+    Ok(images)
 }

@@ -12,11 +12,13 @@ pub mod context;
 mod forward;
 pub mod layout;
 pub mod pipelines;
+mod pixels;
 pub mod plan;
 mod submission;
 
 use std::sync::Mutex;
 
+pub use buffers::MIN_BYTES;
 pub use context::GpuContext;
 pub use pipelines::{Pass, Tiles};
 pub use plan::{Dispatch, Planner, Shape};
@@ -25,7 +27,10 @@ use crate::Backend;
 use crate::error::{Error, Result};
 use crate::prepare::Prepared;
 use crate::scene::{Batch, Gradients, Image, Wanted};
+use buffers::Pool;
+use forward::Input;
 use pipelines::Pipeline;
+use pixels::Source;
 use submission::LastRun;
 
 /// The GPU time of one pass in the last call, from timestamps written at the start and end
@@ -49,11 +54,13 @@ impl PassTiming {
     }
 }
 
-/// The layer on a wgpu device, pipelines built once.
+/// The layer on a wgpu device, pipelines built once, buffers and bind groups kept
+/// between calls (grown to the largest call's; calls on one renderer take turns).
 pub struct GpuRenderer {
     ctx: GpuContext,
     pipelines: Vec<Pipeline>,
     planner: Planner,
+    pool: Mutex<Pool>,
     last: Mutex<LastRun>,
 }
 
@@ -63,14 +70,29 @@ impl GpuRenderer {
         Self::with_context(GpuContext::new()?)
     }
 
-    /// A renderer on an open device.
+    /// A renderer on an open device, planned for its adapter; `MATEDIT_GPU_PLAN=large`
+    /// plans as for a large GPU on any adapter (slices for [`plan::LARGE_GPU_RESIDENT`]
+    /// invocations, batches in one dispatch, workgroup tiles) and `MATEDIT_GPU_TILES=
+    /// workgroup|uniform` forces the tile kind, so that a software adapter runs the paths
+    /// a hardware GPU takes.
     pub fn with_context(ctx: GpuContext) -> Result<Self> {
-        let planner = Planner::for_limits(&ctx.limits, ctx.is_software());
+        let mut planner = Planner::for_limits(&ctx.limits, ctx.is_software());
+        if env_choice("MATEDIT_GPU_PLAN", &["auto", "large"])?.as_deref() == Some("large") {
+            planner = planner.as_large_gpu();
+        }
+        if let Some(t) = env_choice("MATEDIT_GPU_TILES", &["workgroup", "uniform"])? {
+            planner.tiles = if t == "workgroup" {
+                Tiles::Workgroup
+            } else {
+                Tiles::Uniform
+            };
+        }
         let pipelines = build_pipelines(&ctx.device, planner.tiles)?;
         Ok(GpuRenderer {
             ctx,
             pipelines,
             planner,
+            pool: Mutex::new(Pool::default()),
             last: Mutex::new(LastRun::default()),
         })
     }
@@ -103,6 +125,7 @@ impl GpuRenderer {
     /// [`Tiles::Workgroup`]); rebuilds the pipelines.
     pub fn with_tiles(mut self, tiles: Tiles) -> Result<Self> {
         self.pipelines = build_pipelines(&self.ctx.device, tiles)?;
+        self.pool = Mutex::new(Pool::default());
         self.planner.tiles = tiles;
         Ok(self)
     }
@@ -164,6 +187,23 @@ impl GpuRenderer {
     }
 }
 
+/// The value of environment variable `var` where it is set and not empty: one of
+/// `allowed`, else an error naming the variable.
+fn env_choice(var: &str, allowed: &[&str]) -> Result<Option<String>> {
+    match std::env::var(var) {
+        Ok(v) if v.is_empty() => Ok(None),
+        Ok(v) if allowed.contains(&v.as_str()) => Ok(Some(v)),
+        Ok(v) => Err(Error::Invalid(format!(
+            "{var}={v:?}: expected one of {}",
+            allowed.join(", ")
+        ))),
+        Err(std::env::VarError::NotPresent) => Ok(None),
+        Err(std::env::VarError::NotUnicode(_)) => {
+            Err(Error::Invalid(format!("{var}: not valid UTF-8")))
+        }
+    }
+}
+
 /// Every pass's pipeline, the gather passes reading through `tiles`.
 fn build_pipelines(device: &wgpu::Device, tiles: Tiles) -> Result<Vec<Pipeline>> {
     let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
@@ -179,7 +219,16 @@ fn build_pipelines(device: &wgpu::Device, tiles: Tiles) -> Result<Vec<Pipeline>>
 
 impl Backend for GpuRenderer {
     fn describe(&self) -> String {
-        self.ctx.describe()
+        let tiles = match self.planner.tiles {
+            Tiles::Workgroup => "workgroup tiles",
+            Tiles::Uniform => "uniform tiles",
+        };
+        let plan = if self.ctx.is_software() && !self.planner.software {
+            ", large-GPU plan"
+        } else {
+            ""
+        };
+        format!("{}, {tiles}{plan}", self.ctx.describe())
     }
 
     fn last_timings(&self) -> Vec<PassTiming> {
@@ -187,7 +236,8 @@ impl Backend for GpuRenderer {
     }
 
     fn render_prepared(&self, preps: &[Prepared]) -> Result<Vec<Image>> {
-        self.scoped("forward", || forward::forward(self, preps))
+        let inputs = listed(preps);
+        self.scoped("forward", || forward::forward(self, &inputs))
     }
 
     fn backward_prepared(&self, preps: &[Prepared], upstream: &[Image]) -> Result<Vec<Gradients>> {
@@ -200,15 +250,17 @@ impl Backend for GpuRenderer {
         upstream: &[Image],
         wanted: Wanted,
     ) -> Result<Vec<Gradients>> {
+        let inputs = listed(preps);
         self.scoped("backward", || {
-            backward::backward(self, preps, upstream, wanted)
+            backward::backward(self, &inputs, upstream, wanted)
         })
     }
 
-    // the whole batch in one submission
+    // the whole batch in one submission, the pixels read from the normal maps
     fn render(&self, batch: &Batch) -> Result<Vec<Image>> {
-        let preps: Vec<Prepared> = batch.scenes().iter().map(Prepared::new).collect();
-        self.render_prepared(&preps)
+        let preps = lights_of(batch);
+        let inputs = mapped(batch, &preps);
+        self.scoped("forward", || forward::forward(self, &inputs))
     }
 
     fn backward_wanted(
@@ -218,7 +270,43 @@ impl Backend for GpuRenderer {
         wanted: Wanted,
     ) -> Result<Vec<Gradients>> {
         batch.check_upstream(upstream)?;
-        let preps: Vec<Prepared> = batch.scenes().iter().map(Prepared::new).collect();
-        self.backward_prepared_wanted(&preps, upstream, wanted)
+        let preps = lights_of(batch);
+        let inputs = mapped(batch, &preps);
+        self.scoped("backward", || {
+            backward::backward(self, &inputs, upstream, wanted)
+        })
     }
+}
+
+/// Prepared scenes as inputs, their listed pixels.
+fn listed(preps: &[Prepared]) -> Vec<Input<'_>> {
+    preps
+        .iter()
+        .map(|prep| Input {
+            prep,
+            source: Source::Listed(&prep.pixels),
+        })
+        .collect()
+}
+
+/// A batch's scenes prepared without their pixels.
+fn lights_of(batch: &Batch) -> Vec<Prepared> {
+    batch
+        .scenes()
+        .iter()
+        .map(Prepared::without_pixels)
+        .collect()
+}
+
+/// A batch's scenes as inputs, their pixels read from the normal maps.
+fn mapped<'a>(batch: &'a Batch, preps: &'a [Prepared]) -> Vec<Input<'a>> {
+    batch
+        .scenes()
+        .iter()
+        .zip(preps)
+        .map(|(s, prep)| Input {
+            prep,
+            source: Source::Map(&s.normals, s.camera),
+        })
+        .collect()
 }

@@ -150,6 +150,15 @@ impl Planner {
         }
     }
 
+    /// This device's limits planned as on a large GPU: slices for [`LARGE_GPU_RESIDENT`]
+    /// invocations and workgroup tiles (so batches go in one dispatch), even on a
+    /// software adapter.
+    pub fn as_large_gpu(mut self) -> Self {
+        self.software = false;
+        self.tiles = Tiles::Workgroup;
+        self
+    }
+
     /// The same plan with `n` slices asked for (see [`GpuRenderer::with_slices`]).
     ///
     /// [`GpuRenderer::with_slices`]: super::GpuRenderer::with_slices

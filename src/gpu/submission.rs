@@ -1,11 +1,25 @@
-//! One submission: the command encoder, every compute pass (each timed by GPU timestamps
-//! where the adapter has them), the dispatches made, and the readback.
+//! One call's submission: the renderer's buffers (held for the call), the uploads, the
+//! command encoder, every compute pass (each timed by GPU timestamps where the adapter
+//! has them), the dispatches made, and the readback.
 
-use super::buffers::Readback;
+use std::sync::MutexGuard;
+
+use super::buffers::{Entry, ParamsTable, Pool, Readback, Readout, Slot};
+use super::layout::{Params, Pixel};
 use super::pipelines::Pass;
+use super::pixels::Selection;
 use super::plan::Dispatch;
 use super::{GpuRenderer, PassTiming};
-use crate::error::Result;
+use crate::error::{Error, Result};
+
+/// Mapped memory to write records into, 16 bytes a word (every record is whole words).
+pub type Words<'a> = wgpu::WriteOnly<'a, [[u8; 16]]>;
+
+/// Writes `records` at the start of `out`.
+pub fn write_records<T: bytemuck::Pod>(out: Words<'_>, records: &[T]) {
+    let words: &[[u8; 16]] = bytemuck::cast_slice(records);
+    out.into_slice(..words.len()).copy_from_slice(words);
+}
 
 /// What a call recorded: per-pass timings (empty without timestamps) and the dispatches.
 #[derive(Clone, Debug, Default)]
@@ -26,28 +40,155 @@ struct Encoded {
 /// Commands of one submission.
 pub struct Submission<'a> {
     r: &'a GpuRenderer,
-    /// The encoder, for copies.
-    pub enc: wgpu::CommandEncoder,
-    /// The buffers to read back.
-    pub readback: Readback,
+    pool: MutexGuard<'a, Pool>,
+    /// Copies from the staging buffers, submitted before `enc`.
+    uploads: wgpu::CommandEncoder,
+    enc: wgpu::CommandEncoder,
+    readback: Readback,
     passes: Vec<Encoded>,
     dispatches: Vec<Dispatch>,
 }
 
 impl<'a> Submission<'a> {
-    /// An empty submission on `r`'s device.
-    pub fn new(r: &'a GpuRenderer, label: &str) -> Self {
-        let enc = r
-            .ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) });
-        Submission {
+    /// An empty submission on `r`'s device; holds `r`'s buffers until it is finished.
+    pub fn new(r: &'a GpuRenderer, label: &str) -> Result<Self> {
+        let mut pool = r
+            .pool
+            .lock()
+            .map_err(|_| Error::Gpu("a call on this renderer failed mid-way".into()))?;
+        pool.begin();
+        let encoder = |l: &str| {
+            r.ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(l) })
+        };
+        Ok(Submission {
             r,
-            enc,
+            pool,
+            uploads: encoder("uploads"),
+            enc: encoder(label),
             readback: Readback::default(),
             passes: Vec::new(),
             dispatches: Vec::new(),
+        })
+    }
+
+    /// A zeroed-or-reused read-write storage buffer of at least `bytes` that can be
+    /// copied out: every element a pass reads back it writes first.
+    pub fn output(&mut self, label: &'static str, bytes: u64) -> wgpu::Buffer {
+        let usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC;
+        self.pool.buffer(&self.r.ctx.device, label, usage, bytes)
+    }
+
+    /// A buffer for `usage` holding `bytes` (a multiple of 4), through the queue.
+    pub fn upload(
+        &mut self,
+        label: &'static str,
+        usage: wgpu::BufferUsages,
+        bytes: &[u8],
+    ) -> wgpu::Buffer {
+        let b = self
+            .pool
+            .buffer(&self.r.ctx.device, label, usage, bytes.len() as u64);
+        if !bytes.is_empty() {
+            self.r.ctx.queue.write_buffer(&b, 0, bytes);
         }
+        b
+    }
+
+    /// A read-only storage buffer holding `records`.
+    pub fn storage<T: bytemuck::Pod>(
+        &mut self,
+        label: &'static str,
+        records: &[T],
+    ) -> wgpu::Buffer {
+        self.upload(
+            label,
+            wgpu::BufferUsages::STORAGE,
+            bytemuck::cast_slice(records),
+        )
+    }
+
+    /// A buffer for `usage` of `bytes` (a multiple of 16), written by `fill` straight into
+    /// a kept staging buffer (no copy on the host), then copied on the device.
+    pub fn upload_with(
+        &mut self,
+        label: &'static str,
+        usage: wgpu::BufferUsages,
+        bytes: u64,
+        fill: impl FnOnce(Words<'_>),
+    ) -> Result<wgpu::Buffer> {
+        let device = &self.r.ctx.device;
+        let dst = self.pool.buffer(device, label, usage, bytes);
+        let staging = self.pool.staging(device, "staging", bytes)?;
+        {
+            let mut view = staging
+                .get_mapped_range_mut(..)
+                .map_err(|e| Error::Gpu(format!("mapping a staging buffer: {e}")))?;
+            fill(view.slice(..bytes as usize).into_chunks::<16>().0);
+        }
+        staging.unmap();
+        if bytes > 0 {
+            self.uploads
+                .copy_buffer_to_buffer(&staging, 0, &dst, 0, bytes);
+        }
+        Ok(dst)
+    }
+
+    /// A buffer for `usage` of `bytes` (at least the records') holding the records of
+    /// `sels`, one scene after another, computed on all cores.
+    pub fn upload_pixels(
+        &mut self,
+        label: &'static str,
+        usage: wgpu::BufferUsages,
+        sels: &[Selection<'_>],
+        bytes: u64,
+    ) -> Result<wgpu::Buffer> {
+        let n: usize = sels.iter().map(Selection::len).sum();
+        let mut scratch = std::mem::take(&mut self.pool.scratch);
+        scratch.resize(n, Pixel::default());
+        let mut out = &mut scratch[..];
+        for sel in sels {
+            let (head, tail) = out.split_at_mut(sel.len());
+            sel.write(head);
+            out = tail;
+        }
+        let b = self.upload_with(label, usage, bytes, |out| write_records(out, &scratch));
+        self.pool.scratch = scratch;
+        b
+    }
+
+    /// The params buffer of `table` (uniform, or storage for the batched gather passes).
+    pub fn params(&mut self, table: &ParamsTable) -> wgpu::Buffer {
+        let usage = wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::STORAGE;
+        self.upload("params", usage, &table.bytes)
+    }
+
+    /// A bind group of `pass`'s layout: `scenes` [`Params`] of `params` at binding 0 (at a
+    /// dynamic offset), then each of `buffers` (buffer, offset, size or the rest) in order.
+    pub fn bind(
+        &mut self,
+        pass: Pass,
+        params: &wgpu::Buffer,
+        scenes: usize,
+        buffers: &[(&wgpu::Buffer, u64, Option<u64>)],
+    ) -> wgpu::BindGroup {
+        let mut entries: Vec<Entry<'_>> =
+            vec![(0, params, 0, Some((scenes * size_of::<Params>()) as u64))];
+        entries.extend(
+            buffers
+                .iter()
+                .enumerate()
+                .map(|(k, &(b, o, s))| (k as u32 + 1, b, o, s)),
+        );
+        let layout = &self.r.pipeline(pass).layout;
+        self.pool
+            .bind(&self.r.ctx.device, pass.name(), layout, &entries)
+    }
+
+    /// Asks for `bytes` of `src` from byte `offset` to be read back.
+    pub fn read(&mut self, src: &wgpu::Buffer, offset: u64, bytes: u64) -> Slot {
+        self.readback.request(src, offset, bytes)
     }
 
     /// One compute pass of `pass`'s pipeline: for each `(bind group, params offset,
@@ -93,41 +234,66 @@ impl<'a> Submission<'a> {
         });
     }
 
-    /// Submits, waits, and returns every readback slot's values and what the call recorded.
-    pub fn finish(mut self) -> Result<(Vec<Vec<f32>>, LastRun)> {
+    /// Encodes reduce_slices over `parts` (`slices` slices of `elements` vec4 elements
+    /// each); returns the buffer of the sums.
+    pub fn reduce_slices(
+        &mut self,
+        base: Params,
+        parts: &wgpu::Buffer,
+        elements: usize,
+        slices: u32,
+    ) -> wgpu::Buffer {
+        let mut table = ParamsTable::default();
+        let offset = table.push(Params {
+            n_pixels: elements as u32,
+            n_slices: slices,
+            ..base
+        });
+        let params = self.params(&table);
+        let total = self.output("slice sums", elements as u64 * 16);
+        let bg = self.bind(
+            Pass::ReduceSlices,
+            &params,
+            1,
+            &[(parts, 0, None), (&total, 0, None)],
+        );
+        let groups = self.r.planner.reduce_groups(elements);
+        self.compute(Pass::ReduceSlices, 0, &[(&bg, offset, groups)]);
+        total
+    }
+
+    /// Submits, waits, and returns the values read back and what the call recorded.
+    pub fn finish(mut self) -> Result<(Readout<'a>, LastRun)> {
         let device = &self.r.ctx.device;
         let stride = wgpu::QUERY_RESOLVE_BUFFER_ALIGNMENT;
         let timed: Vec<&Encoded> = self.passes.iter().filter(|p| p.queries.is_some()).collect();
         let mut ts_slot = None;
         if !timed.is_empty() {
-            let resolve = device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("timestamps"),
-                size: stride * timed.len() as u64,
-                usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
-                mapped_at_creation: false,
-            });
+            let usage = wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC;
+            let bytes = stride * timed.len() as u64;
+            let resolve = self.pool.buffer(device, "timestamps", usage, bytes);
             for (k, p) in timed.iter().enumerate() {
                 if let Some(q) = &p.queries {
                     self.enc
                         .resolve_query_set(q, 0..2, &resolve, stride * k as u64);
                 }
             }
-            ts_slot = Some(self.readback.copy(
-                device,
-                &mut self.enc,
-                &resolve,
-                stride * timed.len() as u64,
-            ));
+            ts_slot = Some(self.readback.request(&resolve, 0, bytes));
         }
-        self.r.ctx.queue.submit([self.enc.finish()]);
-        let data = self.readback.finish(device)?;
+        let readback = self.pool.readback(device, self.readback.bytes());
+        self.readback.encode(&mut self.enc, &readback);
+        self.r
+            .ctx
+            .queue
+            .submit([self.uploads.finish(), self.enc.finish()]);
+        let out = Readout::map(device, readback, self.pool)?;
         let mut timings: Vec<PassTiming> = Vec::new();
         if let Some(slot) = ts_slot {
             let period_ns = self.r.ctx.queue.get_timestamp_period() as f64;
+            let v = out.get(slot);
             // the u64 ticks, read back as pairs of f32 bit patterns (little-endian)
             let tick = |k: usize, end: usize| {
                 let f = (stride as usize / 4) * k + 2 * end;
-                let v = &data[slot];
                 v[f].to_bits() as u64 | (v[f + 1].to_bits() as u64) << 32
             };
             for (k, p) in timed.iter().enumerate() {
@@ -148,7 +314,7 @@ impl<'a> Submission<'a> {
             }
         }
         Ok((
-            data,
+            out,
             LastRun {
                 timings,
                 dispatches: self.dispatches,
