@@ -100,8 +100,13 @@ fn flat64(v: &[[f64; 3]]) -> Vec<f64> {
 /// Checks the forward and the backward of `scenes` (one batch) on every renderer against
 /// the reference, with upstream gradients `up`.
 fn check(test: &str, scenes: Vec<Scene>, up: Vec<Image>) {
+    check_on(test, &renderers(test), scenes, up);
+}
+
+/// [`check`] on the given renderers.
+fn check_on(test: &str, renderers: &[(String, GpuRenderer)], scenes: Vec<Scene>, up: Vec<Image>) {
     let batch = Batch::new(scenes).expect("batch");
-    for (name, g) in renderers(test) {
+    for (name, g) in renderers {
         let images = g
             .render(&batch)
             .unwrap_or_else(|e| panic!("{test} {name}: forward: {e}"));
@@ -252,5 +257,46 @@ fn batches_holding_empty_scenes() {
         let mut up: Vec<Image> = scenes.iter().map(ones).collect();
         up[3] = zeros(&scenes[3]);
         check("batches_holding_empty_scenes", scenes, up);
+    }
+}
+
+/// A renderer keeps its buffers between calls: whatever a larger or different call left in
+/// them must not reach the next call's answers.
+#[test]
+fn a_kept_renderer_answers_each_call_afresh() {
+    let test = "a_kept_renderer_answers_each_call_afresh";
+    let kept = renderers(test);
+    let sized = |seed, w, h, hl, wl, convention| {
+        random_scene(
+            &mut Rng::new(seed),
+            w,
+            h,
+            hl,
+            wl,
+            convention,
+            Camera::Orthographic,
+        )
+    };
+    let big = sized(11, 24, 20, 32, 64, Convention::Equirect);
+    let mut empty = scene(12, Camera::Orthographic);
+    empty.normals = NormalMap::new(9, 7, vec![[0.0; 3]; 63]).unwrap();
+    let mut dark = sized(18, 24, 20, 32, 64, Convention::Equirect);
+    dark.env = EnvMap::new(32, 64, Convention::Equirect, vec![[0.0; 3]; 32 * 64]).unwrap();
+    let calls = vec![
+        vec![big.clone()],
+        vec![sized(13, 4, 4, 1, 2, Convention::Paper)],
+        vec![sized(14, 4, 4, 2, 4, Convention::Equirect)],
+        vec![sized(15, 24, 20, 32, 64, Convention::Equirect), big.clone()],
+        vec![empty],
+        vec![big.clone()],
+        vec![dark.clone()],
+        vec![sized(16, 1, 1, 1, 2, Convention::Equirect)],
+        vec![big.clone(), dark],
+        vec![big],
+        vec![scene(17, Camera::Perspective { fov_y_deg: 40.0 })],
+    ];
+    for (k, scenes) in calls.into_iter().enumerate() {
+        let up = scenes.iter().map(ones).collect();
+        check_on(&format!("{test} call {k}"), &kept, scenes, up);
     }
 }

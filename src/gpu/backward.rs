@@ -128,7 +128,8 @@ fn encode_texel_scene(
         sub.upload_pixels("pixels", usage, std::slice::from_ref(active), bytes)
     })?;
     let tex = sub.storage("texels", &texels);
-    let d_ctrl = sub.output("d_ctrl", SHARE_BYTES);
+    // with no texels no range reduces into it
+    let d_ctrl = sub.zeroed("d_ctrl", SHARE_BYTES);
     let base = Params::for_scene(prep);
     let mut env_slots = Vec::new();
     for (ri, o) in shape.outer_ranges().into_iter().enumerate() {

@@ -24,18 +24,19 @@ const ALIGN: u64 = 256;
 /// One binding of a bind group: binding index, buffer, offset and size (`None`: the rest).
 pub type Entry<'a> = (u32, &'a wgpu::Buffer, u64, Option<u64>);
 
+/// A buffer's label and usage, and which of the call's buffers of both it is.
+type Role = (&'static str, wgpu::BufferUsages, u32);
+
 /// A bind group's pass and bindings.
 type GroupKey = (&'static str, Vec<(u32, wgpu::Buffer, u64, Option<u64>)>);
 
 /// The buffers and bind groups a renderer keeps.
 #[derive(Default)]
 pub struct Pool {
-    kept: HashMap<(&'static str, u32), wgpu::Buffer>,
-    uses: HashMap<&'static str, u32>,
+    kept: HashMap<Role, wgpu::Buffer>,
+    uses: HashMap<(&'static str, wgpu::BufferUsages), u32>,
     groups: HashMap<GroupKey, wgpu::BindGroup>,
     readback: Option<wgpu::Buffer>,
-    /// Pixel records computed before they are copied to a staging buffer.
-    pub scratch: Vec<super::layout::Pixel>,
 }
 
 /// `bytes` made a valid buffer size: at least [`MIN_BYTES`], whole [`ALIGN`]s.
@@ -76,6 +77,13 @@ impl Pool {
         self.uses.clear();
     }
 
+    /// The role of the call's next buffer of `label` and `usage`.
+    fn role(&mut self, label: &'static str, usage: wgpu::BufferUsages) -> Role {
+        let n = self.uses.entry((label, usage)).or_default();
+        *n += 1;
+        (label, usage, *n - 1)
+    }
+
     /// The call's next buffer of `label`, of at least `bytes`, for `usage` (plus
     /// `COPY_DST`, so that uploads can reach it). Its contents are whatever the last
     /// call left: every pass writes what it reads back.
@@ -86,10 +94,8 @@ impl Pool {
         usage: wgpu::BufferUsages,
         bytes: u64,
     ) -> wgpu::Buffer {
-        let n = self.uses.entry(label).or_default();
-        let key = (label, *n);
-        *n += 1;
         let usage = usage | wgpu::BufferUsages::COPY_DST;
+        let key = self.role(label, usage);
         let (b, new) = fit(device, self.kept.get(&key), label, usage, bytes, false);
         if new {
             // groups over the old buffer would keep it alive
@@ -146,10 +152,8 @@ impl Pool {
         label: &'static str,
         bytes: u64,
     ) -> Result<wgpu::Buffer> {
-        let n = self.uses.entry(label).or_default();
-        let key = (label, *n);
-        *n += 1;
         let usage = wgpu::BufferUsages::MAP_WRITE | wgpu::BufferUsages::COPY_SRC;
+        let key = self.role(label, usage);
         let (b, new) = fit(device, self.kept.get(&key), label, usage, bytes, true);
         if new {
             self.kept.insert(key, b.clone());

@@ -14,6 +14,15 @@ use crate::scene::{Image, NormalMap};
 /// Candidates per chunk of the parallel passes.
 const CHUNK: usize = 1 << 14;
 
+/// Records per block written by one task.
+const BLOCK: usize = 4096;
+
+/// Bytes of a block of records.
+const BLOCK_BYTES: usize = BLOCK * size_of::<Pixel>();
+
+/// 16-byte words of a record.
+const WORDS: usize = size_of::<Pixel>() / 16;
+
 /// Where a scene's pixels come from: a prepared list, or a normal map read directly
 /// (no list built: the records are computed where they are written).
 #[derive(Clone, Copy)]
@@ -133,22 +142,34 @@ impl<'a> Selection<'a> {
         Some((index, p))
     }
 
-    /// Writes the records, in order, at the start of `out`, each chunk's on its own
-    /// thread.
-    pub fn write(&self, mut out: &mut [Pixel]) {
-        let mut parts = Vec::with_capacity(self.starts.len());
-        for (c, &s) in self.starts.iter().enumerate() {
-            let end = self.starts.get(c + 1).copied().unwrap_or(self.len);
-            let (head, tail) = out.split_at_mut(end - s);
-            parts.push(head);
-            out = tail;
-        }
-        parts.into_par_iter().enumerate().for_each(|(c, part)| {
-            let recs = self.chunk(c).filter_map(|i| self.record(i));
-            for (o, (_, p)) in part.iter_mut().zip(recs) {
-                *o = p;
-            }
+    /// Writes the records, in order, at the start of `out` (mapped memory), a block of
+    /// [`BLOCK`] records per task on all cores.
+    pub fn write(&self, out: wgpu::WriteOnly<'_, [u8]>) {
+        let out = out.into_slice(..self.len * size_of::<Pixel>());
+        let (blocks, rest) = out.into_chunks::<BLOCK_BYTES>();
+        let n_blocks = blocks.len();
+        let blocks: Vec<wgpu::WriteOnly<'_, [u8; BLOCK_BYTES]>> = blocks.into_iter().collect();
+        blocks.into_par_iter().enumerate().for_each(|(j, block)| {
+            self.write_block(j * BLOCK, block.into());
         });
+        self.write_block(n_blocks * BLOCK, rest);
+    }
+
+    /// Writes records `first..` into `out` (whole records).
+    fn write_block(&self, first: usize, out: wgpu::WriteOnly<'_, [u8]>) {
+        let n = out.len() / size_of::<Pixel>();
+        if n == 0 {
+            return;
+        }
+        // the chunk of candidates that holds record `first`, and the records before it there
+        let c = self.starts.partition_point(|&s| s <= first) - 1;
+        let skip = first - self.starts[c];
+        let recs = (c * CHUNK..self.source.candidates())
+            .filter_map(|i| self.record(i))
+            .skip(skip)
+            .take(n)
+            .flat_map(|(_, p)| bytemuck::cast::<Pixel, [[u8; 16]; WORDS]>(p));
+        out.into_chunks::<16>().0.write_iter(recs);
     }
 
     /// An image of `width` x `height` with each selected pixel's vec4 result from `vals`

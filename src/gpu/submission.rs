@@ -12,13 +12,10 @@ use super::plan::Dispatch;
 use super::{GpuRenderer, PassTiming};
 use crate::error::{Error, Result};
 
-/// Mapped memory to write records into, 16 bytes a word (every record is whole words).
-pub type Words<'a> = wgpu::WriteOnly<'a, [[u8; 16]]>;
-
 /// Writes `records` at the start of `out`.
-pub fn write_records<T: bytemuck::Pod>(out: Words<'_>, records: &[T]) {
-    let words: &[[u8; 16]] = bytemuck::cast_slice(records);
-    out.into_slice(..words.len()).copy_from_slice(words);
+pub fn write_records<T: bytemuck::Pod>(out: wgpu::WriteOnly<'_, [u8]>, records: &[T]) {
+    let bytes: &[u8] = bytemuck::cast_slice(records);
+    out.into_slice(..bytes.len()).copy_from_slice(bytes);
 }
 
 /// What a call recorded: per-pass timings (empty without timestamps) and the dispatches.
@@ -80,6 +77,14 @@ impl<'a> Submission<'a> {
         self.pool.buffer(&self.r.ctx.device, label, usage, bytes)
     }
 
+    /// [`Submission::output`] cleared to zeros first, for an output that the call's
+    /// passes may leave unwritten (no records to reduce).
+    pub fn zeroed(&mut self, label: &'static str, bytes: u64) -> wgpu::Buffer {
+        let b = self.output(label, bytes);
+        self.enc.clear_buffer(&b, 0, None);
+        b
+    }
+
     /// A buffer for `usage` holding `bytes` (a multiple of 4), through the queue.
     pub fn upload(
         &mut self,
@@ -116,7 +121,7 @@ impl<'a> Submission<'a> {
         label: &'static str,
         usage: wgpu::BufferUsages,
         bytes: u64,
-        fill: impl FnOnce(Words<'_>),
+        fill: impl FnOnce(wgpu::WriteOnly<'_, [u8]>),
     ) -> Result<wgpu::Buffer> {
         let device = &self.r.ctx.device;
         let dst = self.pool.buffer(device, label, usage, bytes);
@@ -125,7 +130,7 @@ impl<'a> Submission<'a> {
             let mut view = staging
                 .get_mapped_range_mut(..)
                 .map_err(|e| Error::Gpu(format!("mapping a staging buffer: {e}")))?;
-            fill(view.slice(..bytes as usize).into_chunks::<16>().0);
+            fill(view.slice(..bytes as usize));
         }
         staging.unmap();
         if bytes > 0 {
@@ -136,7 +141,8 @@ impl<'a> Submission<'a> {
     }
 
     /// A buffer for `usage` of `bytes` (at least the records') holding the records of
-    /// `sels`, one scene after another, computed on all cores.
+    /// `sels`, one scene after another, computed on all cores straight into the staging
+    /// buffer.
     pub fn upload_pixels(
         &mut self,
         label: &'static str,
@@ -144,18 +150,14 @@ impl<'a> Submission<'a> {
         sels: &[Selection<'_>],
         bytes: u64,
     ) -> Result<wgpu::Buffer> {
-        let n: usize = sels.iter().map(Selection::len).sum();
-        let mut scratch = std::mem::take(&mut self.pool.scratch);
-        scratch.resize(n, Pixel::default());
-        let mut out = &mut scratch[..];
-        for sel in sels {
-            let (head, tail) = out.split_at_mut(sel.len());
-            sel.write(head);
-            out = tail;
-        }
-        let b = self.upload_with(label, usage, bytes, |out| write_records(out, &scratch));
-        self.pool.scratch = scratch;
-        b
+        self.upload_with(label, usage, bytes, |out| {
+            let mut out = out;
+            for sel in sels {
+                let (head, tail) = out.split_at(sel.len() * size_of::<Pixel>());
+                sel.write(head);
+                out = tail;
+            }
+        })
     }
 
     /// The params buffer of `table` (uniform, or storage for the batched gather passes).
