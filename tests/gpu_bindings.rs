@@ -300,3 +300,48 @@ fn a_kept_renderer_answers_each_call_afresh() {
         check_on(&format!("{test} call {k}"), &kept, scenes, up);
     }
 }
+
+/// Prepared scenes of one call may differ in their texel counts (the parts of a level of
+/// detail: a culled map, blocks of texels): on workgroup tiles they go in one dispatch,
+/// and each scene's dLoss/dctrl sums its own texels' shares.
+#[test]
+fn prepared_scenes_with_different_texel_counts() {
+    let test = "prepared_scenes_with_different_texel_counts";
+    let scenes: Vec<Scene> = [(6, 12), (2, 4), (4, 8), (1, 2)]
+        .iter()
+        .enumerate()
+        .map(|(k, &(hl, wl))| {
+            let c = Convention::Equirect;
+            random_scene(
+                &mut Rng::new(40 + k as u64),
+                9,
+                7,
+                hl,
+                wl,
+                c,
+                Camera::Orthographic,
+            )
+        })
+        .collect();
+    let preps: Vec<Prepared> = scenes.iter().map(Prepared::new).collect();
+    let up: Vec<Image> = scenes.iter().map(ones).collect();
+    for (name, g) in renderers(test) {
+        let grads = g
+            .backward_prepared(&preps, &up)
+            .unwrap_or_else(|e| panic!("{test} {name}: {e}"));
+        for (b, (prep, u)) in preps.iter().zip(&up).enumerate() {
+            let up64: Vec<[f64; 3]> = u.pixels.iter().map(|p| p.map(f64::from)).collect();
+            let want = reference::backward(prep, &up64);
+            let dc: Vec<f64> = grads[b].d_ctrl.iter().map(|&v| v as f64).collect();
+            let what = format!("{test} {name} scene {b}");
+            assert_close(&format!("{what} d_ctrl"), &dc, &want.d_ctrl, 1e-5, 1e-4);
+            assert_close(
+                &format!("{what} d_env"),
+                &flat(&grads[b].d_env),
+                &flat64(&want.d_env),
+                1e-5,
+                1e-4,
+            );
+        }
+    }
+}

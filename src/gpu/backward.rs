@@ -47,13 +47,8 @@ fn encode_texel(
     let total = shape.outer;
     let scenes = batch_params(inputs, &shape, &na, &nt, &na);
     let mut table = ParamsTable::default();
+    // also reduce_ctrl's: the shares of scene z are its n_texels from its texel_base
     let offset = table.push_scenes(&scenes);
-    // a batch's maps have one size: the shares of scene z start at z * nt
-    let reduce_offset = table.push(Params {
-        n_texels: nt[0] as u32,
-        first: 1,
-        ..scenes[0]
-    });
     let params = sub.params(&table);
     let records: Vec<Texel> = inputs.iter().flat_map(|i| texel_records(i.prep)).collect();
     let tex = sub.storage("texels", &records);
@@ -93,13 +88,13 @@ fn encode_texel(
     let reduce_bg = sub.bind(
         Pass::ReduceCtrl,
         &params,
-        1,
+        b,
         &[(&share, 0, None), (&d_ctrl, 0, None)],
     );
     sub.compute(
         Pass::ReduceCtrl,
         0,
-        &[(&reduce_bg, reduce_offset, [N_PARAMS as u32, 1, b as u32])],
+        &[(&reduce_bg, offset, [N_PARAMS as u32, 1, b as u32])],
     );
     let env_slots: Vec<Slot> = (0..b)
         .map(|z| sub.read(&env, texel_base[z] as u64 * 16, nt[z] as u64 * 16))

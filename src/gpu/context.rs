@@ -16,6 +16,9 @@ pub struct GpuContext {
     /// Whether the device was opened with `TIMESTAMP_QUERY` (the adapter has it): then
     /// every compute pass is timed on the GPU.
     pub timestamps: bool,
+    /// Whether the device was opened with `PIPELINE_CACHE` (Vulkan adapters): then the
+    /// compiled pipelines are kept across processes ([`super::cache`]).
+    pub pipeline_cache: bool,
 }
 
 fn rank(t: wgpu::DeviceType) -> u32 {
@@ -71,12 +74,10 @@ impl GpuContext {
         };
         let info = adapter.get_info();
         let limits = adapter.limits();
-        let timestamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
-        let required_features = if timestamps {
-            wgpu::Features::TIMESTAMP_QUERY
-        } else {
-            wgpu::Features::empty()
-        };
+        let wanted = wgpu::Features::TIMESTAMP_QUERY | wgpu::Features::PIPELINE_CACHE;
+        let required_features = adapter.features() & wanted;
+        let timestamps = required_features.contains(wgpu::Features::TIMESTAMP_QUERY);
+        let pipeline_cache = required_features.contains(wgpu::Features::PIPELINE_CACHE);
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("matedit"),
             required_features,
@@ -92,6 +93,7 @@ impl GpuContext {
             info,
             limits,
             timestamps,
+            pipeline_cache,
         })
     }
 

@@ -8,6 +8,7 @@
 
 mod backward;
 mod buffers;
+pub mod cache;
 pub mod context;
 mod forward;
 pub mod layout;
@@ -28,6 +29,7 @@ use crate::error::{Error, Result};
 use crate::prepare::Prepared;
 use crate::scene::{Batch, Gradients, Image, Wanted};
 use buffers::Pool;
+use cache::DiskCache;
 use forward::Input;
 use pipelines::Pipeline;
 use pixels::Source;
@@ -58,6 +60,7 @@ impl PassTiming {
 /// between calls (grown to the largest call's; calls on one renderer take turns).
 pub struct GpuRenderer {
     ctx: GpuContext,
+    cache: Option<DiskCache>,
     pipelines: Vec<Pipeline>,
     planner: Planner,
     pool: Mutex<Pool>,
@@ -87,9 +90,11 @@ impl GpuRenderer {
                 Tiles::Uniform
             };
         }
-        let pipelines = build_pipelines(&ctx.device, planner.tiles)?;
+        let cache = DiskCache::open(&ctx);
+        let pipelines = build_pipelines(&ctx.device, planner.tiles, cache.as_ref())?;
         Ok(GpuRenderer {
             ctx,
+            cache,
             pipelines,
             planner,
             pool: Mutex::new(Pool::default()),
@@ -124,7 +129,7 @@ impl GpuRenderer {
     /// adapter's default ([`Tiles::Uniform`] on a software adapter, else
     /// [`Tiles::Workgroup`]); rebuilds the pipelines.
     pub fn with_tiles(mut self, tiles: Tiles) -> Result<Self> {
-        self.pipelines = build_pipelines(&self.ctx.device, tiles)?;
+        self.pipelines = build_pipelines(&self.ctx.device, tiles, self.cache.as_ref())?;
         self.pool = Mutex::new(Pool::default());
         self.planner.tiles = tiles;
         Ok(self)
@@ -204,15 +209,23 @@ fn env_choice(var: &str, allowed: &[&str]) -> Result<Option<String>> {
     }
 }
 
-/// Every pass's pipeline, the gather passes reading through `tiles`.
-fn build_pipelines(device: &wgpu::Device, tiles: Tiles) -> Result<Vec<Pipeline>> {
+/// Every pass's pipeline, the gather passes reading through `tiles`; through `cache`, which
+/// is then saved, where there is one.
+fn build_pipelines(
+    device: &wgpu::Device,
+    tiles: Tiles,
+    cache: Option<&DiskCache>,
+) -> Result<Vec<Pipeline>> {
     let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
     let pipelines = Pass::ALL
         .iter()
-        .map(|&p| Pipeline::new(device, p, tiles))
+        .map(|&p| Pipeline::new(device, p, tiles, cache.map(DiskCache::cache)))
         .collect();
     if let Some(e) = pollster::block_on(scope.pop()) {
         return Err(Error::Gpu(format!("building the pipelines: {e}")));
+    }
+    if let Some(c) = cache {
+        c.save();
     }
     Ok(pipelines)
 }

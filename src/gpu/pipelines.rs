@@ -126,15 +126,22 @@ fn buffer_entry(
 }
 
 impl Pipeline {
-    /// Compiles `pass` on `device`, its records read through `tiles`.
-    pub fn new(device: &wgpu::Device, pass: Pass, tiles: Tiles) -> Self {
+    /// Compiles `pass` on `device`, its records read through `tiles`, through `cache`
+    /// where there is one.
+    pub fn new(
+        device: &wgpu::Device,
+        pass: Pass,
+        tiles: Tiles,
+        cache: Option<&wgpu::PipelineCache>,
+    ) -> Self {
         let (ro, rw) = pass.bindings();
-        // the params: on workgroup tiles an array of scenes (a batch in z) in storage
-        let params = match tiles {
-            Tiles::Workgroup if pass.is_gather() => {
-                wgpu::BufferBindingType::Storage { read_only: true }
-            }
-            _ => wgpu::BufferBindingType::Uniform,
+        // the params: an array of scenes (a batch in z) in storage for the gather passes on
+        // workgroup tiles and for reduce_ctrl
+        let params = if pass == Pass::ReduceCtrl || (pass.is_gather() && tiles == Tiles::Workgroup)
+        {
+            wgpu::BufferBindingType::Storage { read_only: true }
+        } else {
+            wgpu::BufferBindingType::Uniform
         };
         let mut entries = vec![buffer_entry(0, params, true, size_of::<Params>() as u64)];
         if pass.is_gather() {
@@ -187,7 +194,7 @@ impl Pipeline {
             module: &module,
             entry_point: Some(pass.name()),
             compilation_options: Default::default(),
-            cache: None,
+            cache,
         });
         Pipeline { pipeline, layout }
     }
