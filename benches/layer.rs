@@ -31,7 +31,9 @@
 //!
 //! The `gpu` path also prints, per scene, the GPU time of each pass of its last forward
 //! and its last backward call (timestamp queries, where the adapter has them; in
-//! layer.json as `pass_timings`).
+//! layer.json as `pass_timings`), and the host's share of a call: the call's wall time
+//! minus its passes' GPU time, median over the timed runs (`host_overhead_s`; for `fb`,
+//! the forward and the backward call together).
 //!
 //! Before the runs, an occupancy table (`--occupancy` prints it alone and exits): for each
 //! scene and pass, the dispatches, workgroups and invocations per dispatch, before
@@ -62,7 +64,7 @@ use serde_json::{Value, json};
 
 const USAGE: &str = "\
 cargo bench --bench layer -- [OPTIONS]
-  --scenes LIST      of sphere128, sphere256, bumpy256 [all]
+  --scenes LIST      of sphere128, sphere256, bumpy256, sphere1024 [all but sphere1024]
   --materials LIST   preset names [plastic-red,clay]
   --paths LIST       of cpu, gpu, reference [cpu,reference]; the reference's results are
                      computed once per scene and material whatever this says
@@ -74,6 +76,7 @@ cargo bench --bench layer -- [OPTIONS]
   --peer-reps N      timed runs per peer (time_peers.py --reps) [--reps]
   --threads N        rayon threads here and --threads of the command line [2, as the peers]
   --env FILE         an .exr or .npy env map instead of the first in ../shared/data/envmaps
+  --env-size HxW     the size the map is resampled to [64x128]
   --out DIR          where layer.json and layer.csv go [target/bench]
   --occupancy        print the occupancy table (dispatch shapes against a large GPU) and exit
   --keep             keep the files given to the command line and the peers, and what they
@@ -81,6 +84,8 @@ cargo bench --bench layer -- [OPTIONS]
                      reference's image, d_env and d_normals as float32 reference_*.npy";
 
 const SCENES: [&str; 3] = ["sphere128", "sphere256", "bumpy256"];
+/// The scenes `--scenes` takes: the default ones and a large one for the GPU path.
+const KNOWN: [&str; 4] = ["sphere128", "sphere256", "bumpy256", "sphere1024"];
 
 struct Opts {
     scenes: Vec<String>,
@@ -93,6 +98,7 @@ struct Opts {
     peer_reps: usize,
     threads: usize,
     env: Option<PathBuf>,
+    env_size: (usize, usize),
     out: PathBuf,
     keep: bool,
     occupancy: bool,
@@ -110,6 +116,7 @@ fn parse_args() -> Result<Opts, String> {
         peer_reps: usize::MAX,
         threads: 2,
         env: None,
+        env_size: common::ENV_SIZE,
         out: target_dir().join("bench"),
         keep: false,
         occupancy: false,
@@ -132,6 +139,14 @@ fn parse_args() -> Result<Opts, String> {
             "--peer-reps" => o.peer_reps = num(args.next(), "--peer-reps")?.max(1),
             "--threads" => o.threads = num(args.next(), "--threads")?.max(1),
             "--env" => o.env = args.next().map(PathBuf::from),
+            "--env-size" => {
+                let v = args.next().unwrap_or_default();
+                o.env_size = v
+                    .split_once('x')
+                    .and_then(|(h, w)| Some((h.parse().ok()?, w.parse().ok()?)))
+                    .filter(|&(h, w)| h > 0 && w > 0)
+                    .ok_or(format!("--env-size '{v}': expected HxW, e.g. 16x32"))?;
+            }
             "--out" => o.out = PathBuf::from(args.next().unwrap_or_default()),
             "--keep" => o.keep = true,
             "--occupancy" => o.occupancy = true,
@@ -145,7 +160,7 @@ fn parse_args() -> Result<Opts, String> {
         o.peer_reps = o.reps;
     }
     o.peers.retain(|p| p != "none");
-    common::check_names(&o.scenes, &SCENES, &o.materials)?;
+    common::check_names(&o.scenes, &KNOWN, &o.materials)?;
     for p in &o.paths {
         if !["cpu", "gpu", "reference"].contains(&p.as_str()) {
             return Err(format!(
@@ -159,7 +174,7 @@ fn parse_args() -> Result<Opts, String> {
 // ---------------------------------------------------------------------------------------
 // machine and inputs
 
-/// The env map: a real HDR map downsampled to 64 x 128, else the built-in sky.
+/// The env map: a real HDR map resampled to `--env-size` (64 x 128), else the built-in sky.
 fn load_env(opts: &Opts) -> (EnvMap, String) {
     let path = opts
         .env
@@ -167,13 +182,13 @@ fn load_env(opts: &Opts) -> (EnvMap, String) {
         .or_else(|| common::envmap_files().into_iter().next());
     let Some(path) = path else {
         println!("env: no ../shared/data/envmaps/*.exr; using the built-in sky");
-        return common::builtin_sky();
+        return common::builtin_sky(opts.env_size);
     };
-    match common::load_env_file(&path) {
+    match common::load_env_file(&path, opts.env_size) {
         Ok(l) => (l.env, l.desc),
         Err(e) => {
             println!("env: {e}; using the built-in sky");
-            common::builtin_sky()
+            common::builtin_sky(opts.env_size)
         }
     }
 }
@@ -182,6 +197,7 @@ fn normals_of(scene: &str) -> NormalMap {
     match scene {
         "sphere128" => NormalMap::sphere(128),
         "sphere256" => NormalMap::sphere(256),
+        "sphere1024" => NormalMap::sphere(1024),
         _ => NormalMap::bumpy(256, 256, BUMPY_SEED),
     }
 }
@@ -309,6 +325,15 @@ struct Timed {
     grads: Gradients,
     fwd_passes: Vec<PassTiming>,
     bwd_passes: Vec<PassTiming>,
+    /// Per run, the call's wall time minus its passes' GPU time (empty without timings).
+    fwd_host: Vec<f64>,
+    fb_host: Vec<f64>,
+}
+
+/// The GPU seconds of the last call's passes; `None` without timestamp queries.
+fn gpu_seconds(r: &Renderer) -> Option<f64> {
+    let t = r.last_timings();
+    (!t.is_empty()).then(|| t.iter().map(|p| p.seconds).sum())
 }
 
 fn time_renderer(
@@ -322,11 +347,14 @@ fn time_renderer(
         r.render(batch)?;
     }
     let mut fwd = Vec::new();
+    let mut fwd_host = Vec::new();
     let mut image = None;
     for _ in 0..reps {
         let s = Instant::now();
         let out = r.render(batch)?;
-        fwd.push(s.elapsed().as_secs_f64());
+        let call = s.elapsed().as_secs_f64();
+        fwd.push(call);
+        fwd_host.extend(gpu_seconds(r).map(|g| call - g));
         image = out.into_iter().next();
     }
     let fwd_passes = r.last_timings();
@@ -335,12 +363,18 @@ fn time_renderer(
         r.backward(batch, upstream)?;
     }
     let mut fb = Vec::new();
+    let mut fb_host = Vec::new();
     let mut grads = None;
     for _ in 0..reps {
         let s = Instant::now();
         let out = r.render(batch)?;
+        let forward_gpu = gpu_seconds(r);
         let g = r.backward(batch, upstream)?;
-        fb.push(s.elapsed().as_secs_f64());
+        let call = s.elapsed().as_secs_f64();
+        fb.push(call);
+        if let (Some(f), Some(b)) = (forward_gpu, gpu_seconds(r)) {
+            fb_host.push(call - f - b);
+        }
         image = out.into_iter().next();
         grads = g.into_iter().next();
     }
@@ -351,6 +385,8 @@ fn time_renderer(
         grads: grads.expect("reps >= 1"),
         fwd_passes,
         bwd_passes: r.last_timings(),
+        fwd_host,
+        fb_host,
     })
 }
 
@@ -820,6 +856,12 @@ fn main() {
                         );
                         a.timings = t.fwd_passes;
                         b.timings = t.bwd_passes;
+                        for (r, host) in [(&mut a, t.fwd_host), (&mut b, t.fb_host)] {
+                            if !host.is_empty() {
+                                r.extra
+                                    .insert("host_overhead_s".into(), json!(median(&host)));
+                            }
+                        }
                         (a, b)
                     })
                 };
@@ -837,6 +879,14 @@ fn main() {
                             let t = pass_timings(call, &r.timings);
                             if !t.is_null() {
                                 r.extra.insert("pass_timings".into(), t);
+                            }
+                            if let Some(h) = r.extra.get("host_overhead_s").and_then(Value::as_f64)
+                            {
+                                println!(
+                                    "    {} host overhead (call - GPU passes, median): {:.2} ms",
+                                    r.pass,
+                                    h * 1e3
+                                );
                             }
                         }
                         records.push(a);

@@ -243,10 +243,10 @@ fn load_envs(names: &[String]) -> Vec<Env> {
     for w in wanted {
         let (name, env, full, desc) = match w {
             None => {
-                let (env, desc) = common::builtin_sky();
+                let (env, desc) = common::builtin_sky(common::ENV_SIZE);
                 ("sky".to_string(), env, None, desc)
             }
-            Some(path) => match common::load_env_file(&path) {
+            Some(path) => match common::load_env_file(&path, common::ENV_SIZE) {
                 Ok(l) => {
                     let name = path.file_stem().unwrap_or_default().to_string_lossy();
                     (name.into_owned(), l.env, Some(l.full), l.desc)

@@ -155,16 +155,16 @@ pub fn envmap_files() -> Vec<PathBuf> {
     maps
 }
 
-/// The built-in procedural sky at [`ENV_SIZE`], and its description.
-pub fn builtin_sky() -> (EnvMap, String) {
-    let (h, w) = ENV_SIZE;
+/// The built-in procedural sky at `(h, w)` (the benchmarks' default: [`ENV_SIZE`]), and its
+/// description.
+pub fn builtin_sky((h, w): (usize, usize)) -> (EnvMap, String) {
     (
         matedit::defaults::procedural_env(h, w, Convention::Equirect),
         format!("built-in procedural sky, {h}x{w}"),
     )
 }
 
-/// An env map file, as loaded and downsampled to [`ENV_SIZE`].
+/// An env map file, as loaded and resampled to the size asked for.
 pub struct LoadedEnv {
     /// At the file's size (negative values clamped).
     pub full: EnvMap,
@@ -174,9 +174,9 @@ pub struct LoadedEnv {
     pub desc: String,
 }
 
-/// Loads an `.exr` or `.npy` env map (`equirect`) and downsamples it to [`ENV_SIZE`].
-pub fn load_env_file(path: &Path) -> matedit::Result<LoadedEnv> {
-    let (h, w) = ENV_SIZE;
+/// Loads an `.exr` or `.npy` env map (`equirect`) and resamples it to `(h, w)` (the
+/// benchmarks' default: [`ENV_SIZE`]).
+pub fn load_env_file(path: &Path, (h, w): (usize, usize)) -> matedit::Result<LoadedEnv> {
     let l = matedit::io::load_env(path, Convention::Equirect)?;
     let (fh, fw) = (l.env.height, l.env.width);
     let full = l.env.clone();
