@@ -9,9 +9,10 @@
 
 `torch.ops.matedit.render` is a `torch.library.custom_op` with a fake (meta) kernel and
 autograd registered, so it works under autograd and `torch.compile`; its backward is
-`torch.ops.matedit.render_backward`, an op of its own. Tensors are float32 on the CPU; a
-tensor on another device is moved to the CPU and the image back, with a warning the
-first time.
+`torch.ops.matedit.render_backward`, an op of its own. Tensors are float32, on the CPU
+or on a GPU: with CUDA tensors the ops copy their inputs to host memory once through
+pinned buffers, run the layer (`device="auto"` picks the wgpu GPU path where there is a
+GPU), and copy the outputs back once, to the inputs' device; they say so once per process.
 """
 
 from __future__ import annotations
@@ -29,7 +30,37 @@ _warned = False
 
 
 def _np(t: torch.Tensor) -> np.ndarray:
-    return t.detach().contiguous().numpy()
+    """A host array of `t`: on a GPU, copied once into a pinned buffer (the device copy
+    can then run at full speed and without a staging copy of the driver's)."""
+    t = t.detach()
+    if t.device.type == "cpu":
+        return t.contiguous().numpy()
+    _warn_once(t.device)
+    host = torch.empty(t.shape, dtype=t.dtype, pin_memory=t.device.type == "cuda")
+    host.copy_(t)
+    return host.numpy()
+
+
+def _back(a: np.ndarray, device: torch.device) -> torch.Tensor:
+    """`a` as a tensor on `device`: through a pinned buffer to a GPU."""
+    t = torch.from_numpy(np.ascontiguousarray(a))
+    if device.type == "cpu":
+        return t
+    pinned = device.type == "cuda"
+    host = torch.empty(t.shape, dtype=t.dtype, pin_memory=pinned).copy_(t) if pinned else t
+    return host.to(device, non_blocking=pinned)
+
+
+def _warn_once(device: torch.device) -> None:
+    global _warned
+    if not _warned:
+        _warned = True
+        warnings.warn(
+            f"matedit.torch: tensors on {device} are copied to host memory and back for "
+            "the layer, which runs on its own device (device='auto': the wgpu GPU path "
+            "where there is a GPU); warned once",
+            stacklevel=3,
+        )
 
 
 @torch.library.custom_op("matedit::render", mutates_args=())
@@ -49,7 +80,7 @@ def _render_op(
         convention=convention,
         device=device,
     )
-    return torch.from_numpy(img)
+    return _back(img, normals.device)
 
 
 def _batch(normals: torch.Tensor, env: torch.Tensor, ctrl: torch.Tensor) -> int | None:
@@ -104,9 +135,9 @@ def _backward_op(
     if ctrl.dim() == 1 and d_ctrl.ndim == 2:
         d_ctrl = d_ctrl.sum(0)
     return (
-        torch.from_numpy(np.ascontiguousarray(d_env)),
-        torch.from_numpy(np.ascontiguousarray(d_normals)),
-        torch.from_numpy(np.ascontiguousarray(d_ctrl)).to(ctrl.dtype),
+        _back(d_env, env.device),
+        _back(d_normals, normals.device),
+        _back(d_ctrl, ctrl.device).to(ctrl.dtype),
     )
 
 
@@ -157,7 +188,6 @@ def render(
     float32; ctrl (108,) or (B, 108) is float32 or float64. fov, convention and device are
     as for `matedit.render`.
     """
-    global _warned
     for name, t in (("normals", normals), ("env", env), ("ctrl", ctrl)):
         if not isinstance(t, torch.Tensor):
             raise ValueError(f"{name}: a torch.Tensor is expected, not {type(t).__name__}")
@@ -166,15 +196,8 @@ def render(
             raise ValueError(f"{name}: dtype {t.dtype}, expected torch.float32")
     if ctrl.dtype not in (torch.float32, torch.float64):
         raise ValueError(f"ctrl: dtype {ctrl.dtype}, expected torch.float32 or torch.float64")
-    home = normals.device
-    if any(t.device.type != "cpu" for t in (normals, env, ctrl)):
-        if not _warned:
-            warnings.warn(
-                "matedit.torch.render runs on the CPU side: tensors on "
-                f"{home} are copied to the CPU and the image back (warned once)",
-                stacklevel=2,
-            )
-            _warned = True
-        normals, env, ctrl = normals.cpu(), env.cpu(), ctrl.cpu()
-    image = torch.ops.matedit.render(normals, env, ctrl, float(fov or 0.0), convention, device)
-    return image.to(home) if home.type != "cpu" else image
+    devices = {t.device for t in (normals, env, ctrl)}
+    if len(devices) > 1:
+        names = ", ".join(sorted(str(d) for d in devices))
+        raise ValueError(f"normals, env and ctrl are on different devices ({names})")
+    return torch.ops.matedit.render(normals, env, ctrl, float(fov or 0.0), convention, device)

@@ -142,3 +142,26 @@ def test_invalid_inputs():
         mt.render(n, e, bad)
     with pytest.raises(ValueError, match="torch.Tensor"):
         mt.render(n.numpy(), e, c)
+
+
+def test_inputs_on_different_devices_are_refused():
+    n, e, c = inputs(grad=False)
+    with pytest.raises(ValueError, match="different devices"):
+        mt.render(n.to("meta"), e, c)
+
+
+@pytest.mark.skipif(not torch.cuda.is_available(), reason="no CUDA device")
+def test_cuda_tensors_give_the_cpu_answers_on_their_device():
+    n, e, c = inputs()
+    img = mt.render(n, e, c, device="cpu")
+    (img * img).sum().backward()
+    want = [t.grad.clone() for t in (n, e, c)]
+    cuda = [t.detach().cuda().requires_grad_() for t in (n, e, c)]
+    with pytest.warns(UserWarning, match="copied to host memory"):
+        img_cuda = mt.render(*cuda, device="cpu")
+    assert img_cuda.device.type == "cuda"
+    (img_cuda * img_cuda).sum().backward()
+    torch.testing.assert_close(img_cuda.cpu(), img.detach(), rtol=0, atol=0)
+    for t, w in zip(cuda, want):
+        assert t.grad.device.type == "cuda"
+        torch.testing.assert_close(t.grad.cpu(), w, rtol=0, atol=0)
