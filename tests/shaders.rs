@@ -11,16 +11,21 @@ fn module(pass: Pass) -> naga::Module {
 }
 
 fn module_with(pass: Pass, tiles: Tiles) -> naga::Module {
+    validated(pass, tiles).0
+}
+
+/// The module of `pass` on `tiles`, and naga's analysis of it (expression types, uses).
+fn validated(pass: Pass, tiles: Tiles) -> (naga::Module, naga::valid::ModuleInfo) {
     let src = pass.source(tiles);
     let module = naga::front::wgsl::parse_str(&src)
         .unwrap_or_else(|e| panic!("{}: {}", pass.name(), e.emit_to_string(&src)));
-    naga::valid::Validator::new(
+    let info = naga::valid::Validator::new(
         naga::valid::ValidationFlags::all(),
         naga::valid::Capabilities::empty(),
     )
     .validate(&module)
     .unwrap_or_else(|e| panic!("{}: {}", pass.name(), e.emit_to_string(&src)));
-    module
+    (module, info)
 }
 
 /// (member name, offset) and span of the WGSL struct `name`.
@@ -141,4 +146,325 @@ fn shared_constants_match_rust() {
         wgsl_u32_const(&module(Pass::BackwardTexel), "CHUNK") as usize,
         PIXEL_CHUNK
     );
+}
+
+// Operations per lit pair, from naga's IR of each gather pass as assembled (workgroup
+// tiles), orthographic camera, 3 active lobes: the statements of the orthographic pair loop
+// (the first loop inside the tile loop: the `perspective == 0` branch comes first), with
+// every call inlined and every loop inside it (the lobe loop) counted 3 times. Each
+// expression counts once per component of its result (dot: once per component of its
+// operands), a float add or subtract of a product used nowhere else counts with that
+// product as one fused multiply-add; swizzles, accesses, constructors and literals are free.
+
+const LOBES: u32 = 3;
+
+/// Scalar operations, by kind.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Ops {
+    /// Float add, multiply, fused multiply-add, min/max/abs/clamp/floor, compare, select.
+    fp: u32,
+    /// Division, exp, exp2, log, log2, sqrt, atan2 and the other special functions.
+    special: u32,
+    /// Integer and boolean arithmetic (indices, loop counters, masks).
+    int: u32,
+    /// Loads from memory (the tile, the parameters, the pixel's record).
+    loads: u32,
+}
+
+impl Ops {
+    fn alu(&self) -> u32 {
+        self.fp + self.special + self.int
+    }
+
+    fn plus(self, o: Ops) -> Ops {
+        Ops {
+            fp: self.fp + o.fp,
+            special: self.special + o.special,
+            int: self.int + o.int,
+            loads: self.loads + o.loads,
+        }
+    }
+
+    fn times(self, k: u32) -> Ops {
+        Ops {
+            fp: self.fp * k,
+            special: self.special * k,
+            int: self.int * k,
+            loads: self.loads * k,
+        }
+    }
+}
+
+/// The operations of a block: along its longest path (one side of each branch: what a lane
+/// issues when its neighbours go the same way) and over every statement (both sides: what
+/// a fully divergent group issues).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Count {
+    path: Ops,
+    all: Ops,
+}
+
+impl Count {
+    fn plus(self, o: Count) -> Count {
+        Count {
+            path: self.path.plus(o.path),
+            all: self.all.plus(o.all),
+        }
+    }
+
+    fn times(self, k: u32) -> Count {
+        Count {
+            path: self.path.times(k),
+            all: self.all.times(k),
+        }
+    }
+
+    fn either(self, o: Count) -> Count {
+        Count {
+            path: if o.path.alu() > self.path.alu() {
+                o.path
+            } else {
+                self.path
+            },
+            all: self.all.plus(o.all),
+        }
+    }
+}
+
+struct Counter<'a> {
+    module: &'a naga::Module,
+    info: &'a naga::valid::ModuleInfo,
+}
+
+impl Counter<'_> {
+    fn inner<'b>(
+        &'b self,
+        fi: &'b naga::valid::FunctionInfo,
+        h: naga::Handle<naga::Expression>,
+    ) -> &'b naga::TypeInner {
+        fi[h].ty.inner_with(&self.module.types)
+    }
+
+    fn width(&self, fi: &naga::valid::FunctionInfo, h: naga::Handle<naga::Expression>) -> u32 {
+        match *self.inner(fi, h) {
+            naga::TypeInner::Vector { size, .. } => size as u32,
+            _ => 1,
+        }
+    }
+
+    fn is_float(&self, fi: &naga::valid::FunctionInfo, h: naga::Handle<naga::Expression>) -> bool {
+        self.inner(fi, h).scalar_kind() == Some(naga::ScalarKind::Float)
+    }
+
+    /// Whether `h` is a float product used only once (fused into the add that uses it).
+    fn fusable(
+        &self,
+        f: &naga::Function,
+        fi: &naga::valid::FunctionInfo,
+        h: naga::Handle<naga::Expression>,
+    ) -> bool {
+        matches!(
+            f.expressions[h],
+            naga::Expression::Binary {
+                op: naga::BinaryOperator::Multiply,
+                ..
+            }
+        ) && self.is_float(fi, h)
+            && fi[h].ref_count == 1
+    }
+
+    fn expression(
+        &self,
+        f: &naga::Function,
+        fi: &naga::valid::FunctionInfo,
+        h: naga::Handle<naga::Expression>,
+    ) -> Ops {
+        use naga::{BinaryOperator as B, Expression as E, MathFunction as M};
+        let w = self.width(fi, h);
+        let fp = |n| Ops {
+            fp: n,
+            ..Ops::default()
+        };
+        let special = |n| Ops {
+            special: n,
+            ..Ops::default()
+        };
+        let int = |n| Ops {
+            int: n,
+            ..Ops::default()
+        };
+        match f.expressions[h] {
+            E::Load { .. } => Ops {
+                loads: 1,
+                ..Ops::default()
+            },
+            E::Binary { op, left, right } => {
+                if !self.is_float(fi, left) {
+                    int(w)
+                } else if op == B::Divide {
+                    special(w)
+                } else if matches!(op, B::Add | B::Subtract)
+                    && (self.fusable(f, fi, left) || self.fusable(f, fi, right))
+                {
+                    Ops::default()
+                } else {
+                    fp(w)
+                }
+            }
+            E::Unary { expr, .. } | E::As { expr, .. } => {
+                if self.is_float(fi, expr) || self.is_float(fi, h) {
+                    fp(w)
+                } else {
+                    int(w)
+                }
+            }
+            E::Select { .. } => {
+                if self.is_float(fi, h) {
+                    fp(w)
+                } else {
+                    int(w)
+                }
+            }
+            E::Relational { .. } => int(1),
+            E::Math { fun, arg, .. } => match fun {
+                M::Dot => fp(self.width(fi, arg)),
+                M::Length => fp(self.width(fi, arg)).plus(special(1)),
+                M::Exp
+                | M::Exp2
+                | M::Log
+                | M::Log2
+                | M::Sqrt
+                | M::InverseSqrt
+                | M::Atan2
+                | M::Pow
+                | M::Sin
+                | M::Cos
+                | M::Tan
+                | M::Atan
+                | M::Acos
+                | M::Asin => special(w),
+                M::Normalize => fp(2 * self.width(fi, arg)).plus(special(1)),
+                _ if self.is_float(fi, h) => fp(w),
+                _ => int(w),
+            },
+            _ => Ops::default(),
+        }
+    }
+
+    fn block(
+        &self,
+        f: &naga::Function,
+        fi: &naga::valid::FunctionInfo,
+        block: &naga::Block,
+    ) -> Count {
+        use naga::Statement as S;
+        let mut c = Count::default();
+        for st in block.iter() {
+            let add = match st {
+                S::Emit(range) => {
+                    let ops = range
+                        .clone()
+                        .map(|h| self.expression(f, fi, h))
+                        .fold(Ops::default(), Ops::plus);
+                    Count {
+                        path: ops,
+                        all: ops,
+                    }
+                }
+                S::Block(b) => self.block(f, fi, b),
+                S::If { accept, reject, .. } => {
+                    self.block(f, fi, accept).either(self.block(f, fi, reject))
+                }
+                S::Loop {
+                    body, continuing, ..
+                } => self
+                    .block(f, fi, body)
+                    .plus(self.block(f, fi, continuing))
+                    .times(LOBES),
+                S::Call { function, .. } => {
+                    let callee = &self.module.functions[*function];
+                    self.block(callee, &self.info[*function], &callee.body)
+                }
+                _ => Count::default(),
+            };
+            c = c.plus(add);
+        }
+        c
+    }
+}
+
+/// The first loop nested `depth` loops deep in `block`, in source order.
+fn nested_loop(block: &naga::Block, depth: u32) -> Option<(&naga::Block, &naga::Block)> {
+    use naga::Statement as S;
+    for st in block.iter() {
+        let found = match st {
+            S::Block(b) => nested_loop(b, depth),
+            S::If { accept, reject, .. } => {
+                nested_loop(accept, depth).or_else(|| nested_loop(reject, depth))
+            }
+            S::Loop {
+                body, continuing, ..
+            } if depth == 0 => Some((body, continuing)),
+            S::Loop { body, .. } => nested_loop(body, depth - 1),
+            _ => None,
+        };
+        if found.is_some() {
+            return found;
+        }
+    }
+    None
+}
+
+/// The operations of one lit pair of `pass` (orthographic camera, 3 lobes).
+fn pair_ops(pass: Pass) -> Count {
+    let (module, info) = validated(pass, Tiles::Workgroup);
+    let ep = &module.entry_points[0];
+    let (body, continuing) = nested_loop(&ep.function.body, 1)
+        .unwrap_or_else(|| panic!("{}: no pair loop", pass.name()));
+    let c = Counter {
+        module: &module,
+        info: &info,
+    };
+    let fi = info.get_entry_point(0);
+    c.block(&ep.function, fi, body)
+        .plus(c.block(&ep.function, fi, continuing))
+}
+
+/// Prints the operations per lit pair of each gather pass
+/// (`cargo test --release --test shaders pair_loop_op_counts -- --nocapture`) and holds
+/// them under bounds, so that a change that adds work to the pair loop fails here.
+#[test]
+fn pair_loop_op_counts() {
+    println!(
+        "operations per lit pair, orthographic camera, {LOBES} lobes (path: one side of each branch; all: both)"
+    );
+    println!(
+        "{:<16} {:>5} {:>5} {:>8} {:>5} {:>6} | {:>5} {:>8}",
+        "pass", "alu", "fp", "special", "int", "loads", "all", "special"
+    );
+    for (pass, bound) in [
+        (Pass::Forward, 307),
+        (Pass::BackwardNormal, 422),
+        (Pass::BackwardTexel, 357),
+    ] {
+        let c = pair_ops(pass);
+        let p = c.path;
+        println!(
+            "{:<16} {:>5} {:>5} {:>8} {:>5} {:>6} | {:>5} {:>8}",
+            pass.name(),
+            p.alu(),
+            p.fp,
+            p.special,
+            p.int,
+            p.loads,
+            c.all.alu(),
+            c.all.special
+        );
+        assert!(
+            p.alu() <= bound,
+            "{}: {} operations per pair, over {bound}",
+            pass.name(),
+            p.alu()
+        );
+    }
 }
