@@ -41,17 +41,18 @@ fn forward(@builtin(global_invocation_id) gid: vec3<u32>,
                 if c <= 0.0 {
                     continue;
                 }
-                let xl = lobe_x(tile[base + i].h.xyz, n, nn_m1);
-                let x = xl.x;
-                let lnx = xl.y;
+                let ld = tile[base + i].ld;
+                let l2 = lobe_x(tile[base + i].h.xyz, n, nn_m1, ld.w).y;
                 // constant lobes are in fconst; lobes with scale 0 are left out
                 var f = tile[base + i].fconst.xyz;
                 for (var a = 0u; a < scenes[z].n_lobes; a++) {
-                    let m0 = tile[base + i].lobes[2u * a].xyz;
-                    let m1 = tile[base + i].lobes[2u * a + 1u].xyz;
-                    f += stable_expm1(m0 * lobe_pow(x, lnx, m1));
+                    let m1 = tile[base + i].lobes[2u * a + 1u];
+                    if l2 * m1.w < UNDERFLOW {
+                        continue;
+                    }
+                    f += exp2m1_3(tile[base + i].lobes[2u * a].xyz * lobe_pow(l2, m1.xyz));
                 }
-                acc += f * tile[base + i].ld.xyz * c;
+                acc += f * ld.xyz * c;
             }
         } else {
             for (var i = 0u; i < m; i++) {
@@ -61,18 +62,16 @@ fn forward(@builtin(global_invocation_id) gid: vec3<u32>,
                     continue;
                 }
                 let hv = half_vector(w, wp);
-                let b = spline_basis(hv.w);
-                let xl = lobe_x(hv.xyz, n, nn_m1);
-                let x = xl.x;
-                let lnx = xl.y;
+                let b = spline_basis(hv.theta_d);
+                let l2 = lobe_x(hv.h, n, nn_m1, hv.pad).y;
                 // active lobes, then constant lobes (x^0 = 1); lobes with scale 0 are left out
                 var f = vec3<f32>(0.0);
                 for (var q = 0u; q < scenes[z].n_lobes; q++) {
                     let m1 = lobe_coef(b, q * 12u + 6u, z);
-                    f += stable_expm1(lobe_coef(b, q * 12u, z) * lobe_pow(x, lnx, m1));
+                    f += exp2m1_3(lobe_coef(b, q * 12u, z) * lobe_pow(l2, m1));
                 }
                 for (var q = scenes[z].n_lobes; q < scenes[z].n_lobes + scenes[z].n_const; q++) {
-                    f += stable_expm1(lobe_coef(b, q * 12u, z));
+                    f += exp2m1_3(lobe_coef(b, q * 12u, z));
                 }
                 acc += f * tile[base + i].ld.xyz * c;
             }
