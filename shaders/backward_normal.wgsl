@@ -49,7 +49,8 @@ fn backward_normal(@builtin(global_invocation_id) gid: vec3<u32>,
                 let ix = inv_x(xl.x);
                 // constant lobes are in fconst (no dependence on x); lobes with scale 0 are left out
                 var f = tile[base + i].fconst.xyz;
-                // sum_s E_s m0_s m1_s x^(m1_s - 1) log2(e): the scales are stored so
+                // sum_s E_s m0_s m1_s x^m1_s log2(e) (the scales are stored times log2(e)),
+                // times ln(2) / x below
                 var dx = vec3<f32>(0.0);
                 for (var a = 0u; a < scenes[z].n_lobes; a++) {
                     let m1 = tile[base + i].lobes[2u * a + 1u];
@@ -62,10 +63,11 @@ fn backward_normal(@builtin(global_invocation_id) gid: vec3<u32>,
                     let p = lobe_pow(l2, m1.xyz);
                     let e = exp2m1_3(m0 * p);
                     f += e;
-                    dx += (e + 1.0) * m0 * lobe_dpow(m1.xyz, p, ix);
+                    let q = m0 * m1.xyz * p;
+                    dx += e * q + q;
                 }
                 let gl = g * ld.xyz;
-                acc += dot(gl, f) * w + (c * LN_2 * dot(gl, dx)) * h;
+                acc += dot(gl, f) * w + (c * LN_2 * ix * dot(gl, dx)) * h;
             }
         } else {
             for (var i = 0u; i < m; i++) {
@@ -89,13 +91,14 @@ fn backward_normal(@builtin(global_invocation_id) gid: vec3<u32>,
                     let p = lobe_pow(l2, m1);
                     let e = exp2m1_3(m0 * p);
                     f += e;
-                    dx += (e + 1.0) * m0 * lobe_dpow(m1, p, ix);
+                    let q = m0 * m1 * p;
+                    dx += e * q + q;
                 }
                 for (var q = scenes[z].n_lobes; q < scenes[z].n_lobes + scenes[z].n_const; q++) {
                     f += exp2m1_3(lobe_coef(b, q * 12u, z));
                 }
                 let gl = g * tile[base + i].ld.xyz;
-                acc += dot(gl, f) * w + (c * LN_2 * dot(gl, dx)) * h;
+                acc += dot(gl, f) * w + (c * LN_2 * ix * dot(gl, dx)) * h;
             }
         }
     }

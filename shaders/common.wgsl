@@ -7,8 +7,6 @@ const WG: u32 = 64u;
 const HALF_PI: f32 = 1.5707963267948966;
 // 1 / x is taken of max(x, TINY) so that it is finite; x <= 0 is handled by a select.
 const TINY: f32 = 1e-30;
-// m1 x^(m1 - 1) diverges as x -> 0 for m1 < 1; the dn term clamps it here.
-const DPOW_MAX: f32 = 1e10;
 const HALF_VECTOR_EPS: f32 = 1e-6;
 
 // One dispatch's (or one scene's, in a batched dispatch) parameters. Kept in sync with
@@ -207,16 +205,12 @@ fn lobe_pow(l2: f32, m1: vec3<f32>) -> vec3<f32> {
     return exp2(m1 * l2);
 }
 
-// 1 / x, 0 at x = 0, for m1 x^(m1 - 1) = m1 x^m1 / x in the dn term (x > 0 is at least
-// 2^-24, see `lobe_x`).
+// 1 / x, 0 at x = 0: the dn term's m1 x^(m1 - 1) is m1 x^m1 / x, so the pass sums
+// E m0 m1 x^m1 over lobes and divides once per pair. The reference clamps m1 x^(m1 - 1) at
+// 1e10 (it diverges as x -> 0 for m1 < 1), but here x > 0 is at least 2^-24 (`lobe_x`), so
+// it is at most 2^24 and the clamp never binds.
 fn inv_x(x: f32) -> f32 {
     return select(0.0, 1.0 / max(x, TINY), x > 0.0);
-}
-
-// m1 x^(m1 - 1) per lobe (or channel) given p = x^m1 and ix = `inv_x`: 0 at x = 0 and for
-// m1 = 0, clamped to DPOW_MAX.
-fn lobe_dpow(m1: vec3<f32>, p: vec3<f32>, ix: f32) -> vec3<f32> {
-    return min(m1 * p * ix, vec3<f32>(DPOW_MAX));
 }
 
 // One channel's BRDF over its three lobes and d f / d m0 per lobe.
@@ -236,7 +230,7 @@ fn lobe_grads(l2: f32, a: vec3<f32>, m1: vec3<f32>, m1_min: f32) -> LobeGrads {
     }
     let p = lobe_pow(l2, m1);
     let e = exp2m1_3(a * p);
-    return LobeGrads(e.x + e.y + e.z, (e + 1.0) * p);
+    return LobeGrads(e.x + e.y + e.z, e * p + p);
 }
 
 // The least component of v.

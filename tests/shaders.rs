@@ -483,8 +483,8 @@ fn pair_loop_op_counts() {
     );
     for (pass, bound) in [
         (Pass::Forward, 174),
-        (Pass::BackwardNormal, 246),
-        (Pass::BackwardTexel, 190),
+        (Pass::BackwardNormal, 229),
+        (Pass::BackwardTexel, 181),
     ] {
         let c = pair_ops(pass);
         let p = c.path;
