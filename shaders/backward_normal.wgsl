@@ -59,12 +59,12 @@ fn backward_normal(@builtin(global_invocation_id) gid: vec3<u32>,
                     if l2 * m1.w < UNDERFLOW {
                         continue;
                     }
-                    let m0 = tile[base + i].lobes[2u * a].xyz;
-                    let p = lobe_pow(l2, m1.xyz);
-                    let e = exp2m1_3(m0 * p);
-                    f += e;
-                    let q = m0 * m1.xyz * p;
-                    dx += e * q + q;
+                    // w: what the channels share
+                    let m0 = tile[base + i].lobes[2u * a];
+                    let lobe = shared_lobe(l2, m0, m1);
+                    f += lobe.e;
+                    let q = m0.xyz * m1.xyz * lobe.p;
+                    dx += lobe.e * q + q;
                 }
                 let gl = g * ld.xyz;
                 acc += dot(gl, f) * w + (c * LN_2 * ix * dot(gl, dx)) * h;

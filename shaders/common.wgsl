@@ -59,8 +59,9 @@ struct Texel {
     // orthographic camera, at theta_d: coef[2k] = (m_{0,0}^k, m_{1,0}^k, m_{2,0}^k, 0) log2(e),
     // coef[2k + 1] = (m_{0,1}^k, m_{1,1}^k, m_{2,1}^k, the least of the three)
     coef: array<vec4<f32>, 6>,
-    // orthographic camera, the active lobes over channels (R, G, B): lobes[2a] = m0 log2(e),
-    // lobes[2a + 1] = m1, with w the least of the three
+    // orthographic camera, the active lobes over channels (R, G, B): lobes[2a] = m0 log2(e)
+    // with w what the channels share (SHARES_*), lobes[2a + 1] = m1 with w the least of the
+    // three
     lobes: array<vec4<f32>, 6>,
 }
 
@@ -211,6 +212,35 @@ fn lobe_pow(l2: f32, m1: vec3<f32>) -> vec3<f32> {
 // it is at most 2^24 and the clamp never binds.
 fn inv_x(x: f32) -> f32 {
     return select(0.0, 1.0 / max(x, TINY), x > 0.0);
+}
+
+// What the channels of an orthographic texel's lobe share (`Texel.lobes[2a].w`, set by the
+// host): nothing, the exponent, or the exponent and the scale (a grey lobe, as in most
+// hand-made materials). The flag is per texel, so every lane of a workgroup of the pixel
+// passes takes the same side.
+const SHARES_EXPONENT: f32 = 1.0;
+const SHARES_LOBE: f32 = 2.0;
+
+// x^m1 and exp(m0 x^m1) - 1 over channels.
+struct Lobe {
+    p: vec3<f32>,
+    e: vec3<f32>,
+}
+
+// One lobe over channels from l2 = log2 x, m0 = the scales times log2(e) (w: what the
+// channels share) and m1 = the exponents (w: the least of the three): one exp2 where the
+// channels share the exponent, and one 2^u - 1 where they share the lobe. Channels apart,
+// the most costly case, are tested first.
+fn shared_lobe(l2: f32, m0: vec4<f32>, m1: vec4<f32>) -> Lobe {
+    if m0.w < SHARES_EXPONENT {
+        let p = lobe_pow(l2, m1.xyz);
+        return Lobe(p, exp2m1_3(m0.xyz * p));
+    }
+    let p = exp2(m1.w * l2);
+    if m0.w < SHARES_LOBE {
+        return Lobe(vec3<f32>(p), exp2m1_3(m0.xyz * p));
+    }
+    return Lobe(vec3<f32>(p), vec3<f32>(exp2m1(m0.x * p)));
 }
 
 // One channel's BRDF over its three lobes and d f / d m0 per lobe.

@@ -50,7 +50,9 @@ fn forward(@builtin(global_invocation_id) gid: vec3<u32>,
                     if l2 * m1.w < UNDERFLOW {
                         continue;
                     }
-                    f += exp2m1_3(tile[base + i].lobes[2u * a].xyz * lobe_pow(l2, m1.xyz));
+                    // w: what the channels share
+                    let m0 = tile[base + i].lobes[2u * a];
+                    f += shared_lobe(l2, m0, m1).e;
                 }
                 acc += f * ld.xyz * c;
             }

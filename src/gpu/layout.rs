@@ -17,6 +17,18 @@ fn for_shader(t: usize, v: f64) -> f32 {
     }
 }
 
+/// What the channels of a lobe with scales `m0` and exponents `m1` (R, G, B) share, as
+/// `SHARES_EXPONENT` and `SHARES_LOBE` in common.wgsl: 2 for both curves, 1 for the
+/// exponent, else 0. Then the pixel passes compute x^m1, or the whole lobe, once.
+fn shared(m0: &[f32; 4], m1: &[f32; 4]) -> f32 {
+    let same = |v: &[f32; 4]| v[0] == v[1] && v[1] == v[2];
+    match (same(m1), same(m0)) {
+        (true, true) => 2.0,
+        (true, false) => 1.0,
+        _ => 0.0,
+    }
+}
+
 /// `lobe_x`'s pad in common.wgsl for a texel with orthographic half vector `h`: 1 where the
 /// half vector is undefined (w_i = -w_p, h = 0), so that x = 0 there.
 fn half_vector_pad(h: [f64; 3]) -> f32 {
@@ -155,8 +167,9 @@ pub struct Texel {
     /// the scales, the least of the three for the exponents (a lobe group is skipped where
     /// x^m1 underflows for all three).
     pub coef: [[f32; 4]; 6],
-    /// The active lobes over channels: lobes[2a] = m0 log2(e) (R, G, B, 0) and
-    /// lobes[2a + 1] = m1 (R, G, B, the least of the three) of the a-th active lobe.
+    /// The active lobes over channels: lobes[2a] = m0 log2(e) (R, G, B, what the channels
+    /// share: 2 both curves, 1 the exponent, else 0) and lobes[2a + 1] = m1 (R, G, B, the
+    /// least of the three) of the a-th active lobe.
     pub lobes: [[f32; 4]; 6],
 }
 const _: () = assert!(size_of::<Texel>().is_multiple_of(16));
@@ -182,6 +195,7 @@ impl Texel {
                 }
             }
             lobes[a * 2 + 1][3] = least(lobes[a * 2 + 1]);
+            lobes[a * 2][3] = shared(&lobes[a * 2], &lobes[a * 2 + 1]);
         }
         let v4 = |v: [f64; 3], w: f64| [v[0] as f32, v[1] as f32, v[2] as f32, w as f32];
         Texel {
