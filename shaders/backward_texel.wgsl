@@ -90,16 +90,13 @@ fn backward_texel(@builtin(global_invocation_id) gid: vec3<u32>,
     var a_b1_3 = vec3<f32>(0.0);
     var a_b1_4 = vec3<f32>(0.0);
     var a_b1_5 = vec3<f32>(0.0);
-    // orthographic cameras: the pair's coefficients are the texel's (scales times log2(e);
-    // w of the exponents: the least of the three)
+    // orthographic cameras: the pair's coefficients are the texel's (`Texel.coef`)
     let h = texels[i].h.xyz;
     let pad = texels[i].ld.w;
-    let m0r = texels[i].coef[0].xyz;
-    let m1r = texels[i].coef[1];
-    let m0g = texels[i].coef[2].xyz;
-    let m1g = texels[i].coef[3];
-    let m0b = texels[i].coef[4].xyz;
-    let m1b = texels[i].coef[5];
+    let coef = texels[i].coef;
+    let m0r = coef[0].xyz;
+    let m0g = coef[2].xyz;
+    let m0b = coef[4].xyz;
     // per channel over lobes: sum_p G c E x^m1 (d0) and sum_p G c E x^m1 log2 x (d1, times
     // m0 log2(e) after the loop)
     var d0r = vec3<f32>(0.0);
@@ -125,9 +122,10 @@ fn backward_texel(@builtin(global_invocation_id) gid: vec3<u32>,
                 let gc = tile[base + p].g.xyz * c;
                 // x^m1 ln x is taken as 0 at x = 0
                 let gl = gc * select(0.0, l2, xl.x > 0.0);
-                let lr = lobe_grads(l2, m0r, m1r.xyz, m1r.w);
-                let lg = lobe_grads(l2, m0g, m1g.xyz, m1g.w);
-                let lb = lobe_grads(l2, m0b, m1b.xyz, m1b.w);
+                let lk = shared_channels(l2, coef);
+                let lr = lk.r;
+                let lg = lk.g;
+                let lb = lk.b;
                 acc_l += gc * vec3<f32>(lr.f, lg.f, lb.f);
                 d0r += gc.x * lr.d0;
                 d1r += gl.x * lr.d0;

@@ -56,8 +56,9 @@ struct Texel {
     ld: vec4<f32>,
     // orthographic camera, xyz: per channel, the constant lobes' share of f
     fconst: vec4<f32>,
-    // orthographic camera, at theta_d: coef[2k] = (m_{0,0}^k, m_{1,0}^k, m_{2,0}^k, 0) log2(e),
-    // coef[2k + 1] = (m_{0,1}^k, m_{1,1}^k, m_{2,1}^k, the least of the three)
+    // orthographic camera, at theta_d: coef[2k].xyz = (m_{0,0}^k, m_{1,0}^k, m_{2,0}^k) log2(e),
+    // coef[2k + 1] = (m_{0,1}^k, m_{1,1}^k, m_{2,1}^k, the least of the three); coef[0].w:
+    // SHARES_LOBE where the three channels have the same lobes, else 0
     coef: array<vec4<f32>, 6>,
     // orthographic camera, the active lobes over channels (R, G, B): lobes[2a] = m0 log2(e)
     // with w what the channels share (SHARES_*), lobes[2a + 1] = m1 with w the least of the
@@ -266,4 +267,26 @@ fn lobe_grads(l2: f32, a: vec3<f32>, m1: vec3<f32>, m1_min: f32) -> LobeGrads {
 // The least component of v.
 fn least(v: vec3<f32>) -> f32 {
     return min(min(v.x, v.y), v.z);
+}
+
+// lobe_grads of the three channels of an orthographic texel at one pair: coef as
+// `Texel.coef`, whose coef[0].w says whether the three channels have the same lobes (a
+// grey material); then they are computed once. The flag depends on the material, not on
+// the pair, so neighbouring lanes take the same side.
+struct ChannelGrads {
+    r: LobeGrads,
+    g: LobeGrads,
+    b: LobeGrads,
+}
+
+fn shared_channels(l2: f32, coef: array<vec4<f32>, 6>) -> ChannelGrads {
+    let r = lobe_grads(l2, coef[0].xyz, coef[1].xyz, coef[1].w);
+    if coef[0].w == SHARES_LOBE {
+        return ChannelGrads(r, r, r);
+    }
+    return ChannelGrads(
+        r,
+        lobe_grads(l2, coef[2].xyz, coef[3].xyz, coef[3].w),
+        lobe_grads(l2, coef[4].xyz, coef[5].xyz, coef[5].w),
+    );
 }

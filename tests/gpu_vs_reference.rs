@@ -359,6 +359,25 @@ fn underflow_material() -> Material {
     Material::new("underflow", &ctrl).unwrap()
 }
 
+/// The same lobes in the three channels (a grey material: the passes compute each lobe once
+/// for the three channels): a sharp lobe (exponent 1e4), a lobe with scales about ln(2)/2
+/// and exponent 0.02 (near the 2^u - 1 branch point) and a broad one.
+fn grey_material() -> Material {
+    let mut ctrl = [0.0; matedit::N_PARAMS];
+    let near_half = [0.30, 0.335, 0.345, 0.3466, 0.35, 0.40];
+    for k in 0..3 {
+        for j in 0..6 {
+            ctrl[matedit::material::idx(k, 0, 0, j)] = 3.0;
+            ctrl[matedit::material::idx(k, 0, 1, j)] = 1e4;
+            ctrl[matedit::material::idx(k, 1, 0, j)] = near_half[j];
+            ctrl[matedit::material::idx(k, 1, 1, j)] = 0.02;
+            ctrl[matedit::material::idx(k, 2, 0, j)] = 0.5;
+            ctrl[matedit::material::idx(k, 2, 1, j)] = 8.0;
+        }
+    }
+    Material::new("grey", &ctrl).unwrap()
+}
+
 /// Over the lit pairs (n . w > 0) of an orthographic scene: how many have u = m0 log2(e)
 /// x^m1 of lobe 0 in some channel within 10% below and above |u| = 1/2, how many have an
 /// undefined half vector, and how many have lobe 1's x^m1 underflowing (m1 log2 x < -150)
@@ -395,8 +414,8 @@ fn edge_coverage(scene: &Scene) -> ([usize; 2], usize, usize) {
 
 /// Both sides of each branch, and the edge cases around them, against the reference on both
 /// cameras: 2^u - 1 on both sides of |u| = 1/2, lobes with zero scales, exponents up to 1e4
-/// that underflow in some channels only, normals facing away and grazing, and a texel with
-/// an undefined half vector. The perspective camera gets only normals facing it (z >= 0.2):
+/// that underflow in some channels only, grey lobes (computed once for the three channels),
+/// normals facing away and grazing, and a texel with an undefined half vector. The perspective camera gets only normals facing it (z >= 0.2):
 /// its half vector is computed in f32 from w + w_p, whose length 2 n . w_p is small where h
 /// is near a normal facing away or grazing, and there the 1e4 lobe's dn was 7e-3 of its max
 /// off the reference, with these shaders and with those before them.
@@ -407,15 +426,19 @@ fn lobe_branches_at_their_edges() {
         (Camera::Orthographic, -1.0),
         (Camera::Perspective { fov_y_deg: 50.0 }, 0.2),
     ] {
-        let scenes: Vec<Scene> = [branch_point_material(), underflow_material()]
-            .into_iter()
-            .map(|material| Scene {
-                normals: grazing_normals(24, 24, z_min),
-                env: edge_env(&mut rng),
-                material,
-                camera,
-            })
-            .collect();
+        let scenes: Vec<Scene> = [
+            branch_point_material(),
+            underflow_material(),
+            grey_material(),
+        ]
+        .into_iter()
+        .map(|material| Scene {
+            normals: grazing_normals(24, 24, z_min),
+            env: edge_env(&mut rng),
+            material,
+            camera,
+        })
+        .collect();
         if camera == Camera::Orthographic {
             let (near, no_half, _) = edge_coverage(&scenes[0]);
             assert!(
@@ -430,7 +453,7 @@ fn lobe_branches_at_their_edges() {
             );
         }
         compare(
-            &format!("lobe branches {camera:?} (branch point, underflow)"),
+            &format!("lobe branches {camera:?} (branch point, underflow, grey)"),
             &Batch::new(scenes).unwrap(),
         );
     }

@@ -514,8 +514,8 @@ fn pair_loop_op_counts() {
         (Pass::Forward, true, 114),
         (Pass::BackwardNormal, false, 232),
         (Pass::BackwardNormal, true, 169),
-        (Pass::BackwardTexel, false, 181),
-        (Pass::BackwardTexel, true, 181),
+        (Pass::BackwardTexel, false, 182),
+        (Pass::BackwardTexel, true, 102),
     ] {
         let c = pair_ops(pass, grey);
         let p = c.path;

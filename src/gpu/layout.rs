@@ -163,9 +163,10 @@ pub struct Texel {
     pub ld: [f32; 4],
     /// xyz: per channel, the constant lobes' share of f.
     pub fconst: [f32; 4],
-    /// coef[k * 2 + t] = (m_{0,t}^k, m_{1,t}^k, m_{2,t}^k, w), scales times log2(e); w: 0 for
-    /// the scales, the least of the three for the exponents (a lobe group is skipped where
-    /// x^m1 underflows for all three).
+    /// coef[k * 2 + t] = (m_{0,t}^k, m_{1,t}^k, m_{2,t}^k, w), scales times log2(e); w: for
+    /// the exponents the least of the three (a channel's lobes are skipped where x^m1
+    /// underflows for all three), for channel 0's scales 2 where the three channels have the
+    /// same lobes (`SHARES_LOBE`: backward_texel computes them once), else 0.
     pub coef: [[f32; 4]; 6],
     /// The active lobes over channels: lobes[2a] = m0 log2(e) (R, G, B, what the channels
     /// share: 2 both curves, 1 the exponent, else 0) and lobes[2a + 1] = m1 (R, G, B, the
@@ -187,6 +188,8 @@ impl Texel {
             }
             coef[k * 2 + 1][3] = least(coef[k * 2 + 1]);
         }
+        let grey = (1..3).all(|k| coef[k * 2] == coef[0] && coef[k * 2 + 1] == coef[1]);
+        coef[0][3] = if grey { 2.0 } else { 0.0 };
         let mut lobes = [[0.0f32; 4]; 6];
         for (a, &s) in active.iter().enumerate() {
             for tt in 0..2 {
