@@ -436,7 +436,7 @@ impl Counter<'_> {
                         },
                         all: a.all.plus(r.all).plus(after.all),
                     },
-                    (a_leaves || after_leaves) && (r_leaves || after_leaves),
+                    after_leaves || (a_leaves && r_leaves),
                 );
             }
             S::Loop {
