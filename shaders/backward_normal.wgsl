@@ -56,7 +56,7 @@ fn backward_normal(@builtin(global_invocation_id) gid: vec3<u32>,
                     let m1 = tile[base + i].lobes[2u * a + 1u];
                     // x^m1 underflows in every channel: adds nothing (x^(m1 - 1) = x^m1 / x
                     // is then under 2^-126, x being 0 or at least 2^-24)
-                    if l2 * m1.w < UNDERFLOW {
+                    if underflows(l2 * m1.w) {
                         continue;
                     }
                     // w: what the channels share

@@ -155,19 +155,10 @@ const EXP2M1_Q3: f32 = 0.009618238;
 const EXP2M1_Q4: f32 = 0.0013390736;
 const EXP2M1_Q5: f32 = 0.00015403503;
 
-// 2^u - 1 without cancellation: u Q(u) where |u| < 1/2, 2^u - 1 elsewhere (|2^u - 1| >= 0.29
-// there, so the subtraction loses under 2 bits). A branch, not a select of both: the pair
-// loops are limited by arithmetic issue, and neighbouring lanes mostly take the same side.
-fn exp2m1(u: f32) -> f32 {
-    if abs(u) < 0.5 {
-        return u * (EXP2M1_Q0 + u * (EXP2M1_Q1 + u * (EXP2M1_Q2 + u * (EXP2M1_Q3
-            + u * (EXP2M1_Q4 + u * EXP2M1_Q5)))));
-    }
-    return exp2(u) - 1.0;
-}
-
-fn exp2m1_3(u: vec3<f32>) -> vec3<f32> {
-    return vec3<f32>(exp2m1(u.x), exp2m1(u.y), exp2m1(u.z));
+// u Q(u) = 2^u - 1 for |u| < 1/2.
+fn exp2m1_small(u: f32) -> f32 {
+    return u * (EXP2M1_Q0 + u * (EXP2M1_Q1 + u * (EXP2M1_Q2 + u * (EXP2M1_Q3
+        + u * (EXP2M1_Q4 + u * EXP2M1_Q5)))));
 }
 
 // The lobe argument x = max(0, dot(h, n)) and log2 x (x: .x, log2 x: .y, NO_LOG at x = 0)
@@ -222,71 +213,7 @@ fn inv_x(x: f32) -> f32 {
 const SHARES_EXPONENT: f32 = 1.0;
 const SHARES_LOBE: f32 = 2.0;
 
-// x^m1 and exp(m0 x^m1) - 1 over channels.
-struct Lobe {
-    p: vec3<f32>,
-    e: vec3<f32>,
-}
-
-// One lobe over channels from l2 = log2 x, m0 = the scales times log2(e) (w: what the
-// channels share) and m1 = the exponents (w: the least of the three): one exp2 where the
-// channels share the exponent, and one 2^u - 1 where they share the lobe. Channels apart,
-// the most costly case, are tested first.
-fn shared_lobe(l2: f32, m0: vec4<f32>, m1: vec4<f32>) -> Lobe {
-    if m0.w < SHARES_EXPONENT {
-        let p = lobe_pow(l2, m1.xyz);
-        return Lobe(p, exp2m1_3(m0.xyz * p));
-    }
-    let p = exp2(m1.w * l2);
-    if m0.w < SHARES_LOBE {
-        return Lobe(vec3<f32>(p), exp2m1_3(m0.xyz * p));
-    }
-    return Lobe(vec3<f32>(p), vec3<f32>(exp2m1(m0.x * p)));
-}
-
-// One channel's BRDF over its three lobes and d f / d m0 per lobe.
-struct LobeGrads {
-    // sum_s exp(m0_s x^m1_s) - 1
-    f: f32,
-    // d f / d m0_s = E_s x^m1_s; d f / d m1_s = E_s m0_s x^m1_s ln x is d0 m0 ln x, which
-    // the pass forms (orthographic cameras: m0 once per texel, after the pair loop)
-    d0: vec3<f32>,
-}
-
-// a = m0 log2(e) and m1 over the lobes, l2 = log2 x, m1_min the least of m1: nothing where
-// x^m1 underflows in every lobe.
-fn lobe_grads(l2: f32, a: vec3<f32>, m1: vec3<f32>, m1_min: f32) -> LobeGrads {
-    if l2 * m1_min < UNDERFLOW {
-        return LobeGrads(0.0, vec3<f32>(0.0));
-    }
-    let p = lobe_pow(l2, m1);
-    let e = exp2m1_3(a * p);
-    return LobeGrads(e.x + e.y + e.z, e * p + p);
-}
-
 // The least component of v.
 fn least(v: vec3<f32>) -> f32 {
     return min(min(v.x, v.y), v.z);
-}
-
-// lobe_grads of the three channels of an orthographic texel at one pair: coef as
-// `Texel.coef`, whose coef[0].w says whether the three channels have the same lobes (a
-// grey material); then they are computed once. The flag depends on the material, not on
-// the pair, so neighbouring lanes take the same side.
-struct ChannelGrads {
-    r: LobeGrads,
-    g: LobeGrads,
-    b: LobeGrads,
-}
-
-fn shared_channels(l2: f32, coef: array<vec4<f32>, 6>) -> ChannelGrads {
-    let r = lobe_grads(l2, coef[0].xyz, coef[1].xyz, coef[1].w);
-    if coef[0].w == SHARES_LOBE {
-        return ChannelGrads(r, r, r);
-    }
-    return ChannelGrads(
-        r,
-        lobe_grads(l2, coef[2].xyz, coef[3].xyz, coef[3].w),
-        lobe_grads(l2, coef[4].xyz, coef[5].xyz, coef[5].w),
-    );
 }

@@ -47,7 +47,7 @@ fn forward(@builtin(global_invocation_id) gid: vec3<u32>,
                 var f = tile[base + i].fconst.xyz;
                 for (var a = 0u; a < scenes[z].n_lobes; a++) {
                     let m1 = tile[base + i].lobes[2u * a + 1u];
-                    if l2 * m1.w < UNDERFLOW {
+                    if underflows(l2 * m1.w) {
                         continue;
                     }
                     // w: what the channels share

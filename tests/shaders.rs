@@ -315,6 +315,15 @@ impl Counter<'_> {
                 loads: 1,
                 ..Ops::default()
             },
+            // and, or, not with a constant: folded away
+            E::Binary {
+                op: B::LogicalAnd | B::LogicalOr,
+                left,
+                right,
+            } if self.constant(f, left).is_some() || self.constant(f, right).is_some() => {
+                Ops::default()
+            }
+            E::Unary { expr, .. } if self.constant(f, expr).is_some() => Ops::default(),
             E::Binary { op, left, right } => {
                 if !self.is_float(fi, left) {
                     int(w)
@@ -368,6 +377,24 @@ impl Counter<'_> {
         }
     }
 
+    /// The value of `h` where it is a constant boolean (`BRANCHES`, or its negation).
+    fn constant(&self, f: &naga::Function, h: naga::Handle<naga::Expression>) -> Option<bool> {
+        match f.expressions[h] {
+            naga::Expression::Literal(naga::Literal::Bool(b)) => Some(b),
+            naga::Expression::Constant(c) => {
+                match self.module.global_expressions[self.module.constants[c].init] {
+                    naga::Expression::Literal(naga::Literal::Bool(b)) => Some(b),
+                    _ => None,
+                }
+            }
+            naga::Expression::Unary {
+                op: naga::UnaryOperator::LogicalNot,
+                expr,
+            } => self.constant(f, expr).map(|b| !b),
+            _ => None,
+        }
+    }
+
     /// Whether `pointer` points into a global variable (memory), not a local one.
     fn global(f: &naga::Function, pointer: naga::Handle<naga::Expression>) -> bool {
         match f.expressions[pointer] {
@@ -385,75 +412,132 @@ impl Counter<'_> {
         fi: &naga::valid::FunctionInfo,
         block: &[naga::Statement],
     ) -> Count {
-        self.statements(f, fi, block).0
+        self.flow(f, fi, block).count()
     }
 
-    /// The operations of `sts`, and whether every path through them leaves the block
-    /// (return, break, continue): then what follows an `if` whose side leaves is not on
-    /// that side's path.
-    fn statements(
+    /// The paths through `sts`: the costliest that leaves the block (return, break,
+    /// continue), the costliest that reaches its end, and the cost of every statement.
+    fn flow(
         &self,
         f: &naga::Function,
         fi: &naga::valid::FunctionInfo,
         sts: &[naga::Statement],
-    ) -> (Count, bool) {
+    ) -> Flow {
         use naga::Statement as S;
         let Some((st, rest)) = sts.split_first() else {
-            return (Count::default(), false);
+            return Flow::through(Ops::default());
         };
         let here = match st {
-            S::Emit(range) => {
-                let ops = range
+            S::Emit(range) => Flow::through(
+                range
                     .clone()
                     .map(|h| self.expression(f, fi, h))
-                    .fold(Ops::default(), Ops::plus);
-                Count {
-                    path: ops,
-                    all: ops,
-                }
+                    .fold(Ops::default(), Ops::plus),
+            ),
+            S::Block(b) => self.flow(f, fi, b),
+            // a constant condition (`BRANCHES`): the other side is folded away
+            S::If {
+                condition,
+                accept,
+                reject,
+            } if self.constant(f, *condition).is_some() => {
+                let taken = self.constant(f, *condition) == Some(true);
+                self.flow(f, fi, if taken { accept } else { reject })
             }
-            S::Block(b) => self.block(f, fi, b),
             S::If { accept, reject, .. } => {
-                let (after, after_leaves) = self.statements(f, fi, rest);
-                let (a, a_leaves) = self.statements(f, fi, accept);
-                let (r, r_leaves) = self.statements(f, fi, reject);
-                let path = |c: Count, leaves: bool| {
-                    if leaves {
-                        c.path
-                    } else {
-                        c.path.plus(after.path)
-                    }
-                };
-                let (pa, pr) = (path(a, a_leaves), path(r, r_leaves));
-                let shorter =
+                let (a, r) = (self.flow(f, fi, accept), self.flow(f, fi, reject));
+                let cheaper =
                     self.grey && f.name.as_deref().is_some_and(|n| n.starts_with("shared_"));
-                return (
-                    Count {
-                        path: if (pr.alu() > pa.alu()) != shorter {
-                            pr
-                        } else {
-                            pa
-                        },
-                        all: a.all.plus(r.all).plus(after.all),
-                    },
-                    after_leaves || (a_leaves && r_leaves),
-                );
+                if cheaper {
+                    let all = a.all.plus(r.all);
+                    let side = if a.count().path.alu() <= r.count().path.alu() {
+                        a
+                    } else {
+                        r
+                    };
+                    Flow { all, ..side }
+                } else {
+                    Flow {
+                        leave: costlier(a.leave, r.leave),
+                        through: costlier(a.through, r.through),
+                        all: a.all.plus(r.all),
+                    }
+                }
             }
             S::Loop {
                 body, continuing, ..
-            } => self
-                .block(f, fi, body)
-                .plus(self.block(f, fi, continuing))
-                .times(LOBES),
+            } => {
+                let c = self
+                    .block(f, fi, body)
+                    .plus(self.block(f, fi, continuing))
+                    .times(LOBES);
+                Flow {
+                    leave: None,
+                    through: Some(c.path),
+                    all: c.all,
+                }
+            }
             S::Call { function, .. } => {
                 let callee = &self.module.functions[*function];
-                self.block(callee, &self.info[*function], &callee.body)
+                let c = self.block(callee, &self.info[*function], &callee.body);
+                Flow {
+                    leave: None,
+                    through: Some(c.path),
+                    all: c.all,
+                }
             }
-            S::Return { .. } | S::Break | S::Continue => return (Count::default(), true),
-            _ => Count::default(),
+            S::Return { .. } | S::Break | S::Continue => Flow {
+                leave: Some(Ops::default()),
+                through: None,
+                all: Ops::default(),
+            },
+            _ => Flow::through(Ops::default()),
         };
-        let (after, leaves) = self.statements(f, fi, rest);
-        (here.plus(after), leaves)
+        let after = self.flow(f, fi, rest);
+        let then = |p: Option<Ops>, q: Option<Ops>| Some(p?.plus(q?));
+        Flow {
+            leave: costlier(here.leave, then(here.through, after.leave)),
+            through: then(here.through, after.through),
+            // after a statement that always leaves, the rest is never reached
+            all: if here.through.is_some() {
+                here.all.plus(after.all)
+            } else {
+                here.all
+            },
+        }
+    }
+}
+
+/// The paths through a block of statements (see `Counter::flow`).
+#[derive(Clone, Copy, Debug)]
+struct Flow {
+    leave: Option<Ops>,
+    through: Option<Ops>,
+    all: Ops,
+}
+
+impl Flow {
+    fn through(ops: Ops) -> Flow {
+        Flow {
+            leave: None,
+            through: Some(ops),
+            all: ops,
+        }
+    }
+
+    /// The costliest path, whichever way it ends, and every statement.
+    fn count(self) -> Count {
+        Count {
+            path: costlier(self.leave, self.through).unwrap_or_default(),
+            all: self.all,
+        }
+    }
+}
+
+fn costlier(a: Option<Ops>, b: Option<Ops>) -> Option<Ops> {
+    match (a, b) {
+        (Some(a), Some(b)) => Some(if b.alu() > a.alu() { b } else { a }),
+        (a, b) => a.or(b),
     }
 }
 
@@ -528,8 +612,17 @@ fn pair_loop_op_counts() {
             p.special,
             p.int,
             p.loads,
-            c.all.alu(),
-            c.all.special
+            // both sides of every branch: the same whatever the lobes
+            if grey {
+                "-".to_string()
+            } else {
+                c.all.alu().to_string()
+            },
+            if grey {
+                "-".to_string()
+            } else {
+                c.all.special.to_string()
+            },
         );
         assert!(
             p.alu() <= bound,
