@@ -142,7 +142,8 @@ const LN_2: f32 = 0.6931471805599453;
 const NO_LOG: f32 = -1e30;
 // 2^t for t < UNDERFLOW is under half of f32's smallest subnormal: it rounds to exactly 0,
 // and a lobe whose x^m1 is 0 in every channel adds exactly 0 to f and to every gradient,
-// so the passes skip it. Sharp lobes underflow over most of a pixel's hemisphere.
+// so the passes skip it on GPUs (`underflows`, gather.wgsl). Sharp lobes underflow over
+// most of a pixel's hemisphere.
 const UNDERFLOW: f32 = -150.0;
 
 // 2^u - 1 = u Q(u) for |u| < 1/2, Q of degree 5, near-minimax: relative error 2.1e-8 (fit).
@@ -208,8 +209,7 @@ fn inv_x(x: f32) -> f32 {
 
 // What the channels of an orthographic texel's lobe share (`Texel.lobes[2a].w`, set by the
 // host): nothing, the exponent, or the exponent and the scale (a grey lobe, as in most
-// hand-made materials). The flag is per texel, so every lane of a workgroup of the pixel
-// passes takes the same side.
+// hand-made materials); `shared_lobe` in gather.wgsl.
 const SHARES_EXPONENT: f32 = 1.0;
 const SHARES_LOBE: f32 = 2.0;
 

@@ -413,12 +413,13 @@ fn edge_coverage(scene: &Scene) -> ([usize; 2], usize, usize) {
 }
 
 /// Both sides of each branch, and the edge cases around them, against the reference on both
-/// cameras: 2^u - 1 on both sides of |u| = 1/2, lobes with zero scales, exponents up to 1e4
-/// that underflow in some channels only, grey lobes (computed once for the three channels),
-/// normals facing away and grazing, and a texel with an undefined half vector. The perspective camera gets only normals facing it (z >= 0.2):
-/// its half vector is computed in f32 from w + w_p, whose length 2 n . w_p is small where h
-/// is near a normal facing away or grazing, and there the 1e4 lobe's dn was 7e-3 of its max
-/// off the reference, with these shaders and with those before them.
+/// cameras and both tile kinds: 2^u - 1 on both sides of |u| = 1/2, lobes with zero scales,
+/// exponents up to 1e4 that underflow in some channels only, grey lobes (computed once for
+/// the three channels), normals facing away and grazing, and a texel with an undefined half
+/// vector. The perspective camera gets only normals facing it (z >= 0.2): its half vector
+/// is computed in f32 from w + w_p, whose length 2 n . w_p is small where h is near a normal
+/// facing away or grazing, and there the 1e4 lobe's dn was 7e-3 of its max off the
+/// reference, with these shaders and with those before them.
 #[test]
 fn lobe_branches_at_their_edges() {
     let mut rng = Rng::new(28);
@@ -452,10 +453,14 @@ fn lobe_branches_at_their_edges() {
                 "no pair where lobe 1 underflows in some channels only"
             );
         }
-        compare(
-            &format!("lobe branches {camera:?} (branch point, underflow, grey)"),
-            &Batch::new(scenes).unwrap(),
-        );
+        // both tile kinds: the branches are taken on workgroup tiles (GPUs) only
+        let batch = Batch::new(scenes).unwrap();
+        for tiles in [Tiles::Workgroup, Tiles::Uniform] {
+            let test =
+                format!("lobe branches {camera:?} {tiles:?} (branch point, underflow, grey)");
+            let Some(g) = gpu(&test) else { return };
+            compare_on(&g.with_tiles(tiles).expect("pipelines"), &test, &batch);
+        }
     }
 }
 
