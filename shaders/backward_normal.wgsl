@@ -31,6 +31,9 @@ fn backward_normal(@builtin(global_invocation_id) gid: vec3<u32>,
     let g = px.g.xyz;
     let start = scenes[z].texel_base + wg.y * scenes[z].slice_len;
     let end = min(start + scenes[z].slice_len, scenes[z].texel_base + scenes[z].n_texels);
+    // the scene's lobe counts, read once, not in every pair's lobe loop
+    let n_active = scenes[z].n_lobes;
+    let n_const = scenes[z].n_const;
     var acc = vec3<f32>(0.0);
     for (var t0 = start; t0 < end; t0 += TILE) {
         let base = load_tile(t0, end, li);
@@ -52,7 +55,7 @@ fn backward_normal(@builtin(global_invocation_id) gid: vec3<u32>,
                 // sum_s E_s m0_s m1_s x^m1_s log2(e) (the scales are stored times log2(e)),
                 // times ln(2) / x below
                 var dx = vec3<f32>(0.0);
-                for (var a = 0u; a < scenes[z].n_lobes; a++) {
+                for (var a = 0u; a < n_active; a++) {
                     let m1 = tile[base + i].lobes[2u * a + 1u];
                     // x^m1 underflows in every channel: adds nothing (x^(m1 - 1) = x^m1 / x
                     // is then under 2^-126, x being 0 or at least 2^-24)
@@ -85,7 +88,7 @@ fn backward_normal(@builtin(global_invocation_id) gid: vec3<u32>,
                 // active lobes, then constant lobes (no dependence on x); scale 0 left out
                 var f = vec3<f32>(0.0);
                 var dx = vec3<f32>(0.0);
-                for (var q = 0u; q < scenes[z].n_lobes; q++) {
+                for (var q = 0u; q < n_active; q++) {
                     let m0 = lobe_coef(b, q * 12u, z);
                     let m1 = lobe_coef(b, q * 12u + 6u, z);
                     let p = lobe_pow(l2, m1);
@@ -94,7 +97,7 @@ fn backward_normal(@builtin(global_invocation_id) gid: vec3<u32>,
                     let q = m0 * m1 * p;
                     dx += e * q + q;
                 }
-                for (var q = scenes[z].n_lobes; q < scenes[z].n_lobes + scenes[z].n_const; q++) {
+                for (var q = n_active; q < n_active + n_const; q++) {
                     f += exp2m1_3(lobe_coef(b, q * 12u, z));
                 }
                 let gl = g * tile[base + i].ld.xyz;

@@ -30,6 +30,9 @@ fn forward(@builtin(global_invocation_id) gid: vec3<u32>,
     let wp = px.wp.xyz;
     let start = scenes[z].texel_base + wg.y * scenes[z].slice_len;
     let end = min(start + scenes[z].slice_len, scenes[z].texel_base + scenes[z].n_texels);
+    // the scene's lobe counts, read once, not in every pair's lobe loop
+    let n_active = scenes[z].n_lobes;
+    let n_const = scenes[z].n_const;
     var acc = vec3<f32>(0.0);
     for (var t0 = start; t0 < end; t0 += TILE) {
         let base = load_tile(t0, end, li);
@@ -45,7 +48,7 @@ fn forward(@builtin(global_invocation_id) gid: vec3<u32>,
                 let l2 = lobe_x(tile[base + i].h.xyz, n, nn_m1, ld.w).y;
                 // constant lobes are in fconst; lobes with scale 0 are left out
                 var f = tile[base + i].fconst.xyz;
-                for (var a = 0u; a < scenes[z].n_lobes; a++) {
+                for (var a = 0u; a < n_active; a++) {
                     let m1 = tile[base + i].lobes[2u * a + 1u];
                     if underflows(l2 * m1.w) {
                         continue;
@@ -68,11 +71,11 @@ fn forward(@builtin(global_invocation_id) gid: vec3<u32>,
                 let l2 = lobe_x(hv.h, n, nn_m1, hv.pad).y;
                 // active lobes, then constant lobes (x^0 = 1); lobes with scale 0 are left out
                 var f = vec3<f32>(0.0);
-                for (var q = 0u; q < scenes[z].n_lobes; q++) {
+                for (var q = 0u; q < n_active; q++) {
                     let m1 = lobe_coef(b, q * 12u + 6u, z);
                     f += exp2m1_3(lobe_coef(b, q * 12u, z) * lobe_pow(l2, m1));
                 }
-                for (var q = scenes[z].n_lobes; q < scenes[z].n_lobes + scenes[z].n_const; q++) {
+                for (var q = n_active; q < n_active + n_const; q++) {
                     f += exp2m1_3(lobe_coef(b, q * 12u, z));
                 }
                 acc += f * tile[base + i].ld.xyz * c;
