@@ -31,6 +31,9 @@ fn backward_normal(@builtin(global_invocation_id) gid: vec3<u32>,
     let g = px.g.xyz;
     let start = scenes[z].texel_base + wg.y * scenes[z].slice_len;
     let end = min(start + scenes[z].slice_len, scenes[z].texel_base + scenes[z].n_texels);
+    // the scene's lobe counts, read once, not in every pair's lobe loop
+    let n_active = scenes[z].n_lobes;
+    let n_const = scenes[z].n_const;
     var acc = vec3<f32>(0.0);
     for (var t0 = start; t0 < end; t0 += TILE) {
         let base = load_tile(t0, end, li);
@@ -43,21 +46,31 @@ fn backward_normal(@builtin(global_invocation_id) gid: vec3<u32>,
                     continue;
                 }
                 let h = tile[base + i].h.xyz;
-                let xl = lobe_x(h, n, nn_m1);
-                let x = xl.x;
-                let lnx = xl.y;
+                let ld = tile[base + i].ld;
+                let xl = lobe_x(h, n, nn_m1, ld.w);
+                let l2 = xl.y;
+                let ix = inv_x(xl.x);
                 // constant lobes are in fconst (no dependence on x); lobes with scale 0 are left out
                 var f = tile[base + i].fconst.xyz;
+                // sum_s E_s m0_s m1_s x^m1_s log2(e) (the scales are stored times log2(e)),
+                // times ln(2) / x below
                 var dx = vec3<f32>(0.0);
-                for (var a = 0u; a < scenes[z].n_lobes; a++) {
-                    let m0 = tile[base + i].lobes[2u * a].xyz;
-                    let m1 = tile[base + i].lobes[2u * a + 1u].xyz;
-                    let e = stable_expm1(m0 * lobe_pow(x, lnx, m1));
-                    f += e;
-                    dx += (e + 1.0) * m0 * lobe_dpow(x, lnx, m1);
+                for (var a = 0u; a < n_active; a++) {
+                    let m1 = tile[base + i].lobes[2u * a + 1u];
+                    // x^m1 underflows in every channel: adds nothing (x^(m1 - 1) = x^m1 / x
+                    // is then under 2^-126, x being 0 or at least 2^-24)
+                    if underflows(l2 * m1.w) {
+                        continue;
+                    }
+                    // w: what the channels share
+                    let m0 = tile[base + i].lobes[2u * a];
+                    let lobe = shared_lobe(l2, m0, m1);
+                    f += lobe.e;
+                    let q = m0.xyz * m1.xyz * lobe.p;
+                    dx += lobe.e * q + q;
                 }
-                let gl = g * tile[base + i].ld.xyz;
-                acc += dot(gl, f) * w + (c * dot(gl, dx)) * h;
+                let gl = g * ld.xyz;
+                acc += dot(gl, f) * w + (c * LN_2 * ix * dot(gl, dx)) * h;
             }
         } else {
             for (var i = 0u; i < m; i++) {
@@ -67,28 +80,28 @@ fn backward_normal(@builtin(global_invocation_id) gid: vec3<u32>,
                     continue;
                 }
                 let hv = half_vector(w, wp);
-                let h = hv.xyz;
-                let b = spline_basis(hv.w);
-                let xl = lobe_x(h, n, nn_m1);
-                let x = xl.x;
-                let lnx = xl.y;
+                let h = hv.h;
+                let b = spline_basis(hv.theta_d);
+                let xl = lobe_x(h, n, nn_m1, hv.pad);
+                let l2 = xl.y;
+                let ix = inv_x(xl.x);
                 // active lobes, then constant lobes (no dependence on x); scale 0 left out
                 var f = vec3<f32>(0.0);
                 var dx = vec3<f32>(0.0);
-                for (var q = 0u; q < scenes[z].n_lobes; q++) {
+                for (var q = 0u; q < n_active; q++) {
                     let m0 = lobe_coef(b, q * 12u, z);
                     let m1 = lobe_coef(b, q * 12u + 6u, z);
-                    let e = stable_expm1(m0 * lobe_pow(x, lnx, m1));
+                    let p = lobe_pow(l2, m1);
+                    let e = exp2m1_3(m0 * p);
                     f += e;
-                    dx += (e + 1.0) * m0 * lobe_dpow(x, lnx, m1);
+                    let q = m0 * m1 * p;
+                    dx += e * q + q;
                 }
-                for (var q = scenes[z].n_lobes; q < scenes[z].n_lobes + scenes[z].n_const; q++) {
-                    f += stable_expm1(lobe_coef(b, q * 12u, z));
+                for (var q = n_active; q < n_active + n_const; q++) {
+                    f += exp2m1_3(lobe_coef(b, q * 12u, z));
                 }
                 let gl = g * tile[base + i].ld.xyz;
-                let along_w = dot(gl, f);
-                let along_h = dot(gl, dx);
-                acc += along_w * w + (c * along_h) * h;
+                acc += dot(gl, f) * w + (c * LN_2 * ix * dot(gl, dx)) * h;
             }
         }
     }

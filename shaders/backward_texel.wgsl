@@ -8,7 +8,9 @@
 // share_i[idx(k, s, t, j)] = L^k d_omega sum_p G^k c E_s (x^m1_s, m0_s x^m1_s ln x)[t] B_j(theta_d)
 //
 // Orthographic cameras (theta_d per texel) sum 6 vectors over pixels and apply the texel's
-// basis at the end; perspective cameras apply each pair's basis inside the loop. The 36
+// basis and scales at the end; perspective cameras apply each pair's basis inside the loop.
+// The scales are stored times log2(e) and the loops take log2 x, so the t = 1 sums are
+// m0 x^m1 ln x / ln(2)^2, multiplied by ln(2)^2 when written. The 36
 // sums are named variables, not an indexed private array: that is slow on SIMD backends
 // such as lavapipe.
 
@@ -88,14 +90,15 @@ fn backward_texel(@builtin(global_invocation_id) gid: vec3<u32>,
     var a_b1_3 = vec3<f32>(0.0);
     var a_b1_4 = vec3<f32>(0.0);
     var a_b1_5 = vec3<f32>(0.0);
-    // orthographic cameras: the pair's coefficients are the texel's
+    // orthographic cameras: the pair's coefficients are the texel's (`Texel.coef`)
     let h = texels[i].h.xyz;
-    let m0r = texels[i].coef[0].xyz;
-    let m1r = texels[i].coef[1].xyz;
-    let m0g = texels[i].coef[2].xyz;
-    let m1g = texels[i].coef[3].xyz;
-    let m0b = texels[i].coef[4].xyz;
-    let m1b = texels[i].coef[5].xyz;
+    let pad = texels[i].ld.w;
+    let coef = texels[i].coef;
+    let m0r = coef[0].xyz;
+    let m0g = coef[2].xyz;
+    let m0b = coef[4].xyz;
+    // per channel over lobes: sum_p G c E x^m1 (d0) and sum_p G c E x^m1 log2 x (d1, times
+    // m0 log2(e) after the loop)
     var d0r = vec3<f32>(0.0);
     var d1r = vec3<f32>(0.0);
     var d0g = vec3<f32>(0.0);
@@ -114,20 +117,22 @@ fn backward_texel(@builtin(global_invocation_id) gid: vec3<u32>,
                 if c <= 0.0 {
                     continue;
                 }
-                let xl = lobe_x(h, n, tile[base + p].nn_m1);
-                let x = xl.x;
-                let lnx = xl.y;
+                let xl = lobe_x(h, n, tile[base + p].nn_m1, pad);
+                let l2 = xl.y;
                 let gc = tile[base + p].g.xyz * c;
-                let lr = lobe_grads(x, lnx, m0r, m1r);
-                let lg = lobe_grads(x, lnx, m0g, m1g);
-                let lb = lobe_grads(x, lnx, m0b, m1b);
+                // x^m1 ln x is taken as 0 at x = 0
+                let gl = gc * select(0.0, l2, xl.x > 0.0);
+                let lk = shared_channels(l2, coef);
+                let lr = lk.r;
+                let lg = lk.g;
+                let lb = lk.b;
                 acc_l += gc * vec3<f32>(lr.f, lg.f, lb.f);
                 d0r += gc.x * lr.d0;
-                d1r += gc.x * lr.d1;
+                d1r += gl.x * lr.d0;
                 d0g += gc.y * lg.d0;
-                d1g += gc.y * lg.d1;
+                d1g += gl.y * lg.d0;
                 d0b += gc.z * lb.d0;
-                d1b += gc.z * lb.d1;
+                d1b += gl.z * lb.d0;
             }
         } else {
             for (var p = 0u; p < m; p++) {
@@ -137,21 +142,27 @@ fn backward_texel(@builtin(global_invocation_id) gid: vec3<u32>,
                     continue;
                 }
                 let hv = half_vector(w, tile[base + p].wp.xyz);
-                let b = spline_basis(hv.w);
-                let xl = lobe_x(hv.xyz, n, tile[base + p].nn_m1);
-                let x = xl.x;
-                let lnx = xl.y;
+                let b = spline_basis(hv.theta_d);
+                let xl = lobe_x(hv.h, n, tile[base + p].nn_m1, hv.pad);
+                let l2 = xl.y;
                 let gc = tile[base + p].g.xyz * c;
-                let lr = lobe_grads(x, lnx, pair_coef(b, 0u, z), pair_coef(b, 6u, z));
-                let lg = lobe_grads(x, lnx, pair_coef(b, 12u, z), pair_coef(b, 18u, z));
-                let lb = lobe_grads(x, lnx, pair_coef(b, 24u, z), pair_coef(b, 30u, z));
+                let gl = gc * select(0.0, l2, xl.x > 0.0);
+                let m0r = pair_coef(b, 0u, z);
+                let m1r = pair_coef(b, 6u, z);
+                let m0g = pair_coef(b, 12u, z);
+                let m1g = pair_coef(b, 18u, z);
+                let m0b = pair_coef(b, 24u, z);
+                let m1b = pair_coef(b, 30u, z);
+                let lr = lobe_grads(l2, m0r, m1r, least(m1r));
+                let lg = lobe_grads(l2, m0g, m1g, least(m1g));
+                let lb = lobe_grads(l2, m0b, m1b, least(m1b));
                 acc_l += gc * vec3<f32>(lr.f, lg.f, lb.f);
                 let wr0 = gc.x * lr.d0;
-                let wr1 = gc.x * lr.d1;
+                let wr1 = gl.x * m0r * lr.d0;
                 let wg0 = gc.y * lg.d0;
-                let wg1 = gc.y * lg.d1;
+                let wg1 = gl.y * m0g * lg.d0;
                 let wb0 = gc.z * lb.d0;
-                let wb1 = gc.z * lb.d1;
+                let wb1 = gl.z * m0b * lb.d0;
                 a_r0_0 += b[0] * wr0;
                 a_r0_1 += b[1] * wr0;
                 a_r0_2 += b[2] * wr0;
@@ -195,6 +206,9 @@ fn backward_texel(@builtin(global_invocation_id) gid: vec3<u32>,
         return;
     }
     if scenes[z].perspective == 0u {
+        d1r *= m0r;
+        d1g *= m0g;
+        d1b *= m0b;
         let tb = spline_basis(texels[i].h.w);
         a_r0_0 = d0r * tb[0];
         a_r0_1 = d0r * tb[1];
@@ -234,6 +248,8 @@ fn backward_texel(@builtin(global_invocation_id) gid: vec3<u32>,
         a_b1_5 = d1b * tb[5];
     }
     let ld = texels[i].ld.xyz;
+    // the t = 1 sums are m0 x^m1 log2 x log2(e) = m0 x^m1 ln x / ln(2)^2
+    let ld1 = ld * (LN_2 * LN_2);
     let dl = vec4<f32>(acc_l * texels[i].w.w, 0.0);
     let first = scenes[z].first == 1u;
     let o = wg.y * scenes[z].slice_stride + scenes[z].texel_base + gid.x;
@@ -248,34 +264,34 @@ fn backward_texel(@builtin(global_invocation_id) gid: vec3<u32>,
     put_share(o, 0u, 0u, 3u, a_r0_3 * ld.x, first);
     put_share(o, 0u, 0u, 4u, a_r0_4 * ld.x, first);
     put_share(o, 0u, 0u, 5u, a_r0_5 * ld.x, first);
-    put_share(o, 0u, 1u, 0u, a_r1_0 * ld.x, first);
-    put_share(o, 0u, 1u, 1u, a_r1_1 * ld.x, first);
-    put_share(o, 0u, 1u, 2u, a_r1_2 * ld.x, first);
-    put_share(o, 0u, 1u, 3u, a_r1_3 * ld.x, first);
-    put_share(o, 0u, 1u, 4u, a_r1_4 * ld.x, first);
-    put_share(o, 0u, 1u, 5u, a_r1_5 * ld.x, first);
+    put_share(o, 0u, 1u, 0u, a_r1_0 * ld1.x, first);
+    put_share(o, 0u, 1u, 1u, a_r1_1 * ld1.x, first);
+    put_share(o, 0u, 1u, 2u, a_r1_2 * ld1.x, first);
+    put_share(o, 0u, 1u, 3u, a_r1_3 * ld1.x, first);
+    put_share(o, 0u, 1u, 4u, a_r1_4 * ld1.x, first);
+    put_share(o, 0u, 1u, 5u, a_r1_5 * ld1.x, first);
     put_share(o, 1u, 0u, 0u, a_g0_0 * ld.y, first);
     put_share(o, 1u, 0u, 1u, a_g0_1 * ld.y, first);
     put_share(o, 1u, 0u, 2u, a_g0_2 * ld.y, first);
     put_share(o, 1u, 0u, 3u, a_g0_3 * ld.y, first);
     put_share(o, 1u, 0u, 4u, a_g0_4 * ld.y, first);
     put_share(o, 1u, 0u, 5u, a_g0_5 * ld.y, first);
-    put_share(o, 1u, 1u, 0u, a_g1_0 * ld.y, first);
-    put_share(o, 1u, 1u, 1u, a_g1_1 * ld.y, first);
-    put_share(o, 1u, 1u, 2u, a_g1_2 * ld.y, first);
-    put_share(o, 1u, 1u, 3u, a_g1_3 * ld.y, first);
-    put_share(o, 1u, 1u, 4u, a_g1_4 * ld.y, first);
-    put_share(o, 1u, 1u, 5u, a_g1_5 * ld.y, first);
+    put_share(o, 1u, 1u, 0u, a_g1_0 * ld1.y, first);
+    put_share(o, 1u, 1u, 1u, a_g1_1 * ld1.y, first);
+    put_share(o, 1u, 1u, 2u, a_g1_2 * ld1.y, first);
+    put_share(o, 1u, 1u, 3u, a_g1_3 * ld1.y, first);
+    put_share(o, 1u, 1u, 4u, a_g1_4 * ld1.y, first);
+    put_share(o, 1u, 1u, 5u, a_g1_5 * ld1.y, first);
     put_share(o, 2u, 0u, 0u, a_b0_0 * ld.z, first);
     put_share(o, 2u, 0u, 1u, a_b0_1 * ld.z, first);
     put_share(o, 2u, 0u, 2u, a_b0_2 * ld.z, first);
     put_share(o, 2u, 0u, 3u, a_b0_3 * ld.z, first);
     put_share(o, 2u, 0u, 4u, a_b0_4 * ld.z, first);
     put_share(o, 2u, 0u, 5u, a_b0_5 * ld.z, first);
-    put_share(o, 2u, 1u, 0u, a_b1_0 * ld.z, first);
-    put_share(o, 2u, 1u, 1u, a_b1_1 * ld.z, first);
-    put_share(o, 2u, 1u, 2u, a_b1_2 * ld.z, first);
-    put_share(o, 2u, 1u, 3u, a_b1_3 * ld.z, first);
-    put_share(o, 2u, 1u, 4u, a_b1_4 * ld.z, first);
-    put_share(o, 2u, 1u, 5u, a_b1_5 * ld.z, first);
+    put_share(o, 2u, 1u, 0u, a_b1_0 * ld1.z, first);
+    put_share(o, 2u, 1u, 1u, a_b1_1 * ld1.z, first);
+    put_share(o, 2u, 1u, 2u, a_b1_2 * ld1.z, first);
+    put_share(o, 2u, 1u, 3u, a_b1_3 * ld1.z, first);
+    put_share(o, 2u, 1u, 4u, a_b1_4 * ld1.z, first);
+    put_share(o, 2u, 1u, 5u, a_b1_5 * ld1.z, first);
 }

@@ -5,10 +5,8 @@
 // Threads per workgroup in every pass, and records per workgroup-memory tile.
 const WG: u32 = 64u;
 const HALF_PI: f32 = 1.5707963267948966;
-// log(x) is taken of max(x, TINY) so that it is finite; x <= 0 is handled by selects.
+// 1 / x is taken of max(x, TINY) so that it is finite; x <= 0 is handled by a select.
 const TINY: f32 = 1e-30;
-// m1 x^(m1 - 1) diverges as x -> 0 for m1 < 1; the dn term clamps it here.
-const DPOW_MAX: f32 = 1e10;
 const HALF_VECTOR_EPS: f32 = 1e-6;
 
 // One dispatch's (or one scene's, in a batched dispatch) parameters. Kept in sync with
@@ -39,10 +37,11 @@ struct Params {
     // elements between two slices' partial sums (all scenes' outputs)
     slice_stride: u32,
     _pad: u32,
-    // cc[(k * 2 + t) * 6 + j] = (ctrl[idx(k, 0, t, j)], ctrl[idx(k, 1, t, j)], ctrl[idx(k, 2, t, j)], 0)
+    // cc[(k * 2 + t) * 6 + j] = (ctrl[idx(k, 0, t, j)], ctrl[idx(k, 1, t, j)], ctrl[idx(k, 2, t, j)], 0),
+    // scales (t = 0) times log2(e)
     cc: array<vec4<f32>, 36>,
     // lc[(q * 2 + t) * 6 + j]: the same over channels (R, G, B) for the q-th lobe of the
-    // active then the constant lobes
+    // active then the constant lobes, scales times log2(e)
     lc: array<vec4<f32>, 36>,
 }
 
@@ -52,13 +51,18 @@ struct Texel {
     w: vec4<f32>,
     // orthographic camera: xyz the half vector, w theta_d
     h: vec4<f32>,
-    // xyz: L^k(i) d_omega_i
+    // xyz: L^k(i) d_omega_i; w: orthographic camera, the pad of `lobe_x` (1 where the half
+    // vector is undefined)
     ld: vec4<f32>,
     // orthographic camera, xyz: per channel, the constant lobes' share of f
     fconst: vec4<f32>,
-    // orthographic camera: coef[k * 2 + t] = (m_{0,t}^k, m_{1,t}^k, m_{2,t}^k, 0) at theta_d
+    // orthographic camera, at theta_d: coef[2k].xyz = (m_{0,0}^k, m_{1,0}^k, m_{2,0}^k) log2(e),
+    // coef[2k + 1] = (m_{0,1}^k, m_{1,1}^k, m_{2,1}^k, the least of the three); coef[0].w:
+    // SHARES_LOBE where the three channels have the same lobes, else 0
     coef: array<vec4<f32>, 6>,
-    // orthographic camera, the active lobes over channels: lobes[2a] = m0 (R, G, B), lobes[2a + 1] = m1
+    // orthographic camera, the active lobes over channels (R, G, B): lobes[2a] = m0 log2(e)
+    // with w what the channels share (SHARES_*), lobes[2a + 1] = m1 with w the least of the
+    // three
     lobes: array<vec4<f32>, 6>,
 }
 
@@ -105,90 +109,111 @@ fn spline_basis(t_in: f32) -> array<f32, 6> {
     );
 }
 
-// Half vector of w and wp (xyz) and theta_d (w); h = 0 where w = -wp.
+// The half vector of w and wp, theta_d, and the pad `lobe_x` takes (1 where w = -wp: then
+// h = 0, x = 0 and theta_d = pi/2).
+struct HalfVector {
+    h: vec3<f32>,
+    theta_d: f32,
+    pad: f32,
+}
+
 // theta_d = acos(w.h) is computed as atan2(|w - wp|, |w + wp|), the same angle (h bisects
 // w and wp), because acos near 1 loses most of its digits in f32.
-fn half_vector(w: vec3<f32>, wp: vec3<f32>) -> vec4<f32> {
+fn half_vector(w: vec3<f32>, wp: vec3<f32>) -> HalfVector {
     let s = w + wp;
     let len = length(s);
     var h = vec3<f32>(0.0);
+    var pad = 1.0;
     if len >= HALF_VECTOR_EPS {
         h = s / len;
+        pad = 0.0;
     }
-    return vec4<f32>(h, atan2(length(w - wp), len));
+    return HalfVector(h, atan2(length(w - wp), len), pad);
 }
 
-// exp(y) - 1 without cancellation: a degree-8 Taylor polynomial where |y| < 0.5
-// (truncation error < 1.1e-8 relative), exp(y) - 1 elsewhere.
-// Multiplications by reciprocals, not divisions: divisions are several times dearer.
-fn stable_expm1(y: vec3<f32>) -> vec3<f32> {
-    let series = y * (1.0 + y * 0.5 * (1.0 + y * (1.0 / 3.0) * (1.0 + y * 0.25
-        * (1.0 + y * 0.2 * (1.0 + y * (1.0 / 6.0) * (1.0 + y * (1.0 / 7.0)
-        * (1.0 + y * 0.125)))))));
-    return select(exp(y) - 1.0, series, abs(y) < vec3<f32>(0.5));
+// The lobes are computed in base 2: exp(m0 x^m1) - 1 = 2^(a x^m1) - 1 with a = m0 log2(e),
+// stored so by the host (every scale in Params and Texel; src/gpu/layout.rs), and
+// x^m1 = 2^(m1 log2 x) with log2 x from `lobe_x`, once per pair: one exp2 for x^m1 and one
+// 2^u - 1 per lobe and channel, no multiplication by log2(e) in the pair loop.
+const LOG2_E: f32 = 1.4426950408889634;
+const LN_2: f32 = 0.6931471805599453;
+// log2 x stand-in at x = 0: m1 NO_LOG is finite for every valid exponent (<= 1e4) and far
+// below UNDERFLOW for m1 > 1e-27, so x^m1 = 0; 0 NO_LOG = 0 gives x^0 = 1.
+const NO_LOG: f32 = -1e30;
+// 2^t for t < UNDERFLOW is under half of f32's smallest subnormal: it rounds to exactly 0,
+// and a lobe whose x^m1 is 0 in every channel adds exactly 0 to f and to every gradient,
+// so the passes skip it on GPUs (`underflows`, gather.wgsl). Sharp lobes underflow over
+// most of a pixel's hemisphere.
+const UNDERFLOW: f32 = -150.0;
+
+// 2^u - 1 = u Q(u) for |u| < 1/2, Q of degree 5, near-minimax: relative error 2.1e-8 (fit).
+// The coefficients are `EXP2M1_Q` of src/cpu/math.rs (checked by tests/shaders.rs), whose
+// f32 evaluation tests/cpu_math.rs sweeps.
+const EXP2M1_Q0: f32 = 0.6931472;
+const EXP2M1_Q1: f32 = 0.24022649;
+const EXP2M1_Q2: f32 = 0.055503573;
+const EXP2M1_Q3: f32 = 0.009618238;
+const EXP2M1_Q4: f32 = 0.0013390736;
+const EXP2M1_Q5: f32 = 0.00015403503;
+
+// u Q(u) = 2^u - 1 for |u| < 1/2.
+fn exp2m1_small(u: f32) -> f32 {
+    return u * (EXP2M1_Q0 + u * (EXP2M1_Q1 + u * (EXP2M1_Q2 + u * (EXP2M1_Q3
+        + u * (EXP2M1_Q4 + u * EXP2M1_Q5)))));
 }
 
-// log(x) for the lobe powers; finite for every x.
-fn lobe_log(x: f32) -> f32 {
-    return log(max(x, TINY));
-}
-
-// The lobe argument x = max(0, dot(h, n)) and ln x (x: .x, ln x: .y) for the unit half
-// vector h (h = 0 where it is undefined: then x = 0) and the normal n, with
-// nn_m1 = |n|^2 - 1 from the host. x^m1 = exp(m1 ln x) with m1 up to 1e4 multiplies any
-// absolute error of ln x by m1, so where x is near 1 neither 1 - x nor ln x may lose digits:
+// The lobe argument x = max(0, dot(h, n)) and log2 x (x: .x, log2 x: .y, NO_LOG at x = 0)
+// for the unit half vector h and the normal n, with nn_m1 = |n|^2 - 1 from the host and
+// pad = 1 where h is undefined (w = -wp: then x = 0), else 0. x^m1 = 2^(m1 log2 x) with m1
+// up to 1e4 multiplies any absolute error of log2 x by m1, so where x is near 1 neither
+// 1 - x nor log2 x may lose digits:
 // - dot(h, n) = 1 - d with d = (|h - n|^2 - nn_m1) / 2: h - n is exact where h is near n,
 //   so d keeps its digits, and an error of |h| off 1 counts only times |h - n|;
-// - ln x = log1p(-d) = -2 atanh(z), z = d / (2 - d), by its series where |z| <= 1/3
-//   (-1 <= d <= 1/2; truncation < 2e-9 relative), because log(u) itself is only held to an
-//   absolute error of 2^-21 for u in [0.5, 2] (WGSL, Vulkan), which is 5e-3 of x^m1 at
-//   m1 = 1e4; elsewhere log(max(x, TINY)) (relative error bound there; 1 - d is exact for
-//   1/2 <= d <= 1).
+// - log2 x = log1p(-d) / ln 2 = -2 atanh(z) / ln 2, z = d / (2 - d), by its series where
+//   |z| <= 1/3 (-1 <= d <= 1/2; truncation < 2e-9 relative), because log2(u) itself is
+//   only held to an absolute error of 2^-21 for u in [0.5, 2] (WGSL, Vulkan), which is
+//   5e-3 of x^m1 at m1 = 1e4; elsewhere log2 x (relative error bound there; 1 - d is exact
+//   for 1/2 <= d <= 1, and x > 0 is at least 2^-24 there).
 // Mirrors `lobe_x` in src/reference/common.rs, which takes ln x as log1p(-d) in f64.
-fn lobe_x(h: vec3<f32>, n: vec3<f32>, nn_m1: f32) -> vec2<f32> {
+const SERIES: f32 = -2.0 * LOG2_E;
+fn lobe_x(h: vec3<f32>, n: vec3<f32>, nn_m1: f32, pad: f32) -> vec2<f32> {
     let v = h - n;
-    let d = 0.5 * (dot(v, v) - nn_m1);
-    let x = select(0.0, max(0.0, 1.0 - d), any(h != vec3<f32>(0.0)));
-    let z = d / (2.0 - d);
-    let z2 = z * z;
-    let series = -2.0 * z * (1.0 + z2 * ((1.0 / 3.0) + z2 * (0.2 + z2 * ((1.0 / 7.0)
-        + z2 * ((1.0 / 9.0) + z2 * ((1.0 / 11.0) + z2 * ((1.0 / 13.0)
-        + z2 * (1.0 / 15.0))))))));
-    let near_one = x > 0.0 && d >= -1.0 && d <= 0.5;
-    return vec2<f32>(x, select(lobe_log(x), series, near_one));
+    let d = 0.5 * (dot(v, v) - nn_m1) + pad;
+    let x = max(0.0, 1.0 - d);
+    var l2 = NO_LOG;
+    if d >= -1.0 && d <= 0.5 {
+        let z = d / (2.0 - d);
+        let z2 = z * z;
+        l2 = z * (SERIES + z2 * ((SERIES / 3.0) + z2 * ((SERIES / 5.0) + z2 * ((SERIES / 7.0)
+            + z2 * ((SERIES / 9.0) + z2 * ((SERIES / 11.0) + z2 * ((SERIES / 13.0)
+            + z2 * (SERIES / 15.0))))))));
+    } else if x > 0.0 {
+        l2 = log2(x);
+    }
+    return vec2<f32>(x, l2);
 }
 
-// x^e per lobe, with x^e = 0 at x = 0 for e > 0 and x^0 = 1.
-fn lobe_pow(x: f32, lnx: f32, e: vec3<f32>) -> vec3<f32> {
-    let p = select(exp(e * lnx), vec3<f32>(0.0), vec3<bool>(x <= 0.0));
-    return select(p, vec3<f32>(1.0), e == vec3<f32>(0.0));
+// x^m1 per lobe (or channel) from l2 = log2 x (NO_LOG at x = 0): 0 at x = 0 for m1 > 0 and
+// x^0 = 1, without selects.
+fn lobe_pow(l2: f32, m1: vec3<f32>) -> vec3<f32> {
+    return exp2(m1 * l2);
 }
 
-// x^e ln x per lobe (given p = x^e), 0 at x = 0.
-fn lobe_pow_log(x: f32, lnx: f32, p: vec3<f32>) -> vec3<f32> {
-    return select(p * lnx, vec3<f32>(0.0), vec3<bool>(x <= 0.0));
+// 1 / x, 0 at x = 0: the dn term's m1 x^(m1 - 1) is m1 x^m1 / x, so the pass sums
+// E m0 m1 x^m1 over lobes and divides once per pair. The reference clamps m1 x^(m1 - 1) at
+// 1e10 (it diverges as x -> 0 for m1 < 1), but here x > 0 is at least 2^-24 (`lobe_x`), so
+// it is at most 2^24 and the clamp never binds.
+fn inv_x(x: f32) -> f32 {
+    return select(0.0, 1.0 / max(x, TINY), x > 0.0);
 }
 
-// e x^(e - 1) per lobe, 0 at x = 0 and for e = 0, clamped to DPOW_MAX.
-fn lobe_dpow(x: f32, lnx: f32, e: vec3<f32>) -> vec3<f32> {
-    let d = min(e * exp((e - 1.0) * lnx), vec3<f32>(DPOW_MAX));
-    let zero = vec3<bool>(x <= 0.0) | (e == vec3<f32>(0.0));
-    return select(d, vec3<f32>(0.0), zero);
-}
+// What the channels of an orthographic texel's lobe share (`Texel.lobes[2a].w`, set by the
+// host): nothing, the exponent, or the exponent and the scale (a grey lobe, as in most
+// hand-made materials); `shared_lobe` in gather.wgsl.
+const SHARES_EXPONENT: f32 = 1.0;
+const SHARES_LOBE: f32 = 2.0;
 
-// One channel's BRDF and its derivatives with respect to the lobes' coefficients.
-struct LobeGrads {
-    // sum_s exp(m0_s x^m1_s) - 1
-    f: f32,
-    // d f / d m0_s = E_s x^m1_s
-    d0: vec3<f32>,
-    // d f / d m1_s = E_s m0_s x^m1_s ln x
-    d1: vec3<f32>,
-}
-
-fn lobe_grads(x: f32, lnx: f32, m0: vec3<f32>, m1: vec3<f32>) -> LobeGrads {
-    let pw = lobe_pow(x, lnx, m1);
-    let e = stable_expm1(m0 * pw);
-    let big_e = e + 1.0;
-    return LobeGrads(e.x + e.y + e.z, big_e * pw, big_e * m0 * lobe_pow_log(x, lnx, pw));
+// The least component of v.
+fn least(v: vec3<f32>) -> f32 {
+    return min(min(v.x, v.y), v.z);
 }

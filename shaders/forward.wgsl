@@ -30,6 +30,9 @@ fn forward(@builtin(global_invocation_id) gid: vec3<u32>,
     let wp = px.wp.xyz;
     let start = scenes[z].texel_base + wg.y * scenes[z].slice_len;
     let end = min(start + scenes[z].slice_len, scenes[z].texel_base + scenes[z].n_texels);
+    // the scene's lobe counts, read once, not in every pair's lobe loop
+    let n_active = scenes[z].n_lobes;
+    let n_const = scenes[z].n_const;
     var acc = vec3<f32>(0.0);
     for (var t0 = start; t0 < end; t0 += TILE) {
         let base = load_tile(t0, end, li);
@@ -41,17 +44,20 @@ fn forward(@builtin(global_invocation_id) gid: vec3<u32>,
                 if c <= 0.0 {
                     continue;
                 }
-                let xl = lobe_x(tile[base + i].h.xyz, n, nn_m1);
-                let x = xl.x;
-                let lnx = xl.y;
+                let ld = tile[base + i].ld;
+                let l2 = lobe_x(tile[base + i].h.xyz, n, nn_m1, ld.w).y;
                 // constant lobes are in fconst; lobes with scale 0 are left out
                 var f = tile[base + i].fconst.xyz;
-                for (var a = 0u; a < scenes[z].n_lobes; a++) {
-                    let m0 = tile[base + i].lobes[2u * a].xyz;
-                    let m1 = tile[base + i].lobes[2u * a + 1u].xyz;
-                    f += stable_expm1(m0 * lobe_pow(x, lnx, m1));
+                for (var a = 0u; a < n_active; a++) {
+                    let m1 = tile[base + i].lobes[2u * a + 1u];
+                    if underflows(l2 * m1.w) {
+                        continue;
+                    }
+                    // w: what the channels share
+                    let m0 = tile[base + i].lobes[2u * a];
+                    f += shared_lobe(l2, m0, m1).e;
                 }
-                acc += f * tile[base + i].ld.xyz * c;
+                acc += f * ld.xyz * c;
             }
         } else {
             for (var i = 0u; i < m; i++) {
@@ -61,18 +67,16 @@ fn forward(@builtin(global_invocation_id) gid: vec3<u32>,
                     continue;
                 }
                 let hv = half_vector(w, wp);
-                let b = spline_basis(hv.w);
-                let xl = lobe_x(hv.xyz, n, nn_m1);
-                let x = xl.x;
-                let lnx = xl.y;
+                let b = spline_basis(hv.theta_d);
+                let l2 = lobe_x(hv.h, n, nn_m1, hv.pad).y;
                 // active lobes, then constant lobes (x^0 = 1); lobes with scale 0 are left out
                 var f = vec3<f32>(0.0);
-                for (var q = 0u; q < scenes[z].n_lobes; q++) {
+                for (var q = 0u; q < n_active; q++) {
                     let m1 = lobe_coef(b, q * 12u + 6u, z);
-                    f += stable_expm1(lobe_coef(b, q * 12u, z) * lobe_pow(x, lnx, m1));
+                    f += exp2m1_3(lobe_coef(b, q * 12u, z) * lobe_pow(l2, m1));
                 }
-                for (var q = scenes[z].n_lobes; q < scenes[z].n_lobes + scenes[z].n_const; q++) {
-                    f += stable_expm1(lobe_coef(b, q * 12u, z));
+                for (var q = n_active; q < n_active + n_const; q++) {
+                    f += exp2m1_3(lobe_coef(b, q * 12u, z));
                 }
                 acc += f * tile[base + i].ld.xyz * c;
             }

@@ -9,6 +9,10 @@
 @group(0) @binding(0) var<uniform> scenes: array<Params, 1>;
 @group(0) @binding(1) var<uniform> tile: array<Tiled, CHUNK>;
 
+// Lavapipe runs every side of every branch under a mask: the lobe math selects instead
+// (gather.wgsl).
+const BRANCHES: bool = false;
+
 // Records per tile: a slice never spans more than the chunk bound.
 const TILE: u32 = CHUNK;
 

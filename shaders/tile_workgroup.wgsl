@@ -10,6 +10,10 @@
 
 var<workgroup> tile: array<Tiled, WG>;
 
+// A GPU's lanes skip the side of a branch that none of them takes: the lobe math branches
+// (gather.wgsl).
+const BRANCHES: bool = true;
+
 // Records per tile: each slice is walked in steps of TILE.
 const TILE: u32 = WG;
 

@@ -28,12 +28,13 @@ const EXP2_P: [f32; 5] = [
     0.009_671_514,
     0.001_326_471_5,
 ];
-/// 2^f - 1 = f Q(f) on [-1/2, 1/2], Q of degree 5: relative error 2.1e-8 (fit).
+/// 2^f - 1 = f Q(f) on [-1/2, 1/2], Q of degree 5: relative error 2.1e-8 (fit). The
+/// shaders' `exp2m1` (shaders/common.wgsl) uses the same coefficients.
 #[expect(
     clippy::approx_constant,
     reason = "a fitted coefficient near ln 2, not ln 2"
 )]
-const EXP2M1_Q: [f32; 6] = [
+pub const EXP2M1_Q: [f32; 6] = [
     0.693_147_2,
     0.240_226_49,
     0.055_503_573,

@@ -6,6 +6,35 @@ use bytemuck::{Pod, Zeroable};
 use crate::material::{N_PARAMS, idx};
 use crate::prepare::{PixelRec, TexelRec};
 
+/// What the shaders get for coefficient `t` (0: scale, 1: exponent) of value `v`: the
+/// lobes are computed in base 2 (exp(m0 x^m1) - 1 = 2^(m0 log2(e) x^m1) - 1), so every
+/// scale is stored times log2(e) and the pair loops have no multiplication by it.
+fn for_shader(t: usize, v: f64) -> f32 {
+    if t == 0 {
+        (v * std::f64::consts::LOG2_E) as f32
+    } else {
+        v as f32
+    }
+}
+
+/// What the channels of a lobe with scales `m0` and exponents `m1` (R, G, B) share, as
+/// `SHARES_EXPONENT` and `SHARES_LOBE` in common.wgsl: 2 for both curves, 1 for the
+/// exponent, else 0. Then the pixel passes compute x^m1, or the whole lobe, once.
+fn shared(m0: &[f32; 4], m1: &[f32; 4]) -> f32 {
+    let same = |v: &[f32; 4]| v[0] == v[1] && v[1] == v[2];
+    match (same(m1), same(m0)) {
+        (true, true) => 2.0,
+        (true, false) => 1.0,
+        _ => 0.0,
+    }
+}
+
+/// `lobe_x`'s pad in common.wgsl for a texel with orthographic half vector `h`: 1 where the
+/// half vector is undefined (w_i = -w_p, h = 0), so that x = 0 there.
+fn half_vector_pad(h: [f64; 3]) -> f32 {
+    if h == [0.0; 3] { 1.0 } else { 0.0 }
+}
+
 /// Threads per workgroup (`WG` in common.wgsl), and records per workgroup-memory tile.
 pub const WG: usize = 64;
 // a tile of texels fills WebGPU's minimum of 16 KiB of workgroup memory exactly
@@ -51,10 +80,11 @@ pub struct Params {
     pub slice_stride: u32,
     /// Padding to 16 bytes.
     pub _pad: u32,
-    /// cc[(k * 2 + t) * 6 + j] = the control points j of coefficient t of channel k's three lobes.
+    /// cc[(k * 2 + t) * 6 + j] = the control points j of coefficient t of channel k's three
+    /// lobes, scales times log2(e).
     pub cc: [[f32; 4]; 36],
     /// lc[(q * 2 + t) * 6 + j] = the control points j of coefficient t of the q-th lobe of
-    /// the active then the constant lobes, over channels (R, G, B).
+    /// the active then the constant lobes, over channels (R, G, B), scales times log2(e).
     pub lc: [[f32; 4]; 36],
 }
 const _: () = assert!(size_of::<Params>().is_multiple_of(16));
@@ -81,7 +111,7 @@ impl Params {
             for t in 0..2 {
                 for j in 0..6 {
                     for k in 0..3 {
-                        p.lc[(q * 2 + t) * 6 + j][k] = prep.ctrl[idx(k, s, t, j)] as f32;
+                        p.lc[(q * 2 + t) * 6 + j][k] = for_shader(t, prep.ctrl[idx(k, s, t, j)]);
                     }
                 }
             }
@@ -96,7 +126,7 @@ impl Params {
             for t in 0..2 {
                 for j in 0..6 {
                     for s in 0..3 {
-                        cc[(k * 2 + t) * 6 + j][s] = ctrl[idx(k, s, t, j)] as f32;
+                        cc[(k * 2 + t) * 6 + j][s] = for_shader(t, ctrl[idx(k, s, t, j)]);
                     }
                 }
             }
@@ -128,14 +158,19 @@ pub struct Texel {
     pub w: [f32; 4],
     /// xyz: orthographic half vector; w: theta_d.
     pub h: [f32; 4],
-    /// xyz: L^k d_omega.
+    /// xyz: L^k d_omega; w: orthographic cameras, 1 where the half vector is undefined
+    /// (`lobe_x`'s pad).
     pub ld: [f32; 4],
     /// xyz: per channel, the constant lobes' share of f.
     pub fconst: [f32; 4],
-    /// coef[k * 2 + t] = (m_{0,t}^k, m_{1,t}^k, m_{2,t}^k, 0).
+    /// coef[k * 2 + t] = (m_{0,t}^k, m_{1,t}^k, m_{2,t}^k, w), scales times log2(e); w: for
+    /// the exponents the least of the three (a channel's lobes are skipped where x^m1
+    /// underflows for all three), for channel 0's scales 2 where the three channels have the
+    /// same lobes (`SHARES_LOBE`: backward_texel computes them once), else 0.
     pub coef: [[f32; 4]; 6],
-    /// The active lobes over channels: lobes[2a] = m0 (R, G, B, 0) and lobes[2a + 1] = m1
-    /// of the a-th active lobe.
+    /// The active lobes over channels: lobes[2a] = m0 log2(e) (R, G, B, what the channels
+    /// share: 2 both curves, 1 the exponent, else 0) and lobes[2a + 1] = m1 (R, G, B, the
+    /// least of the three) of the a-th active lobe.
     pub lobes: [[f32; 4]; 6],
 }
 const _: () = assert!(size_of::<Texel>().is_multiple_of(16));
@@ -143,21 +178,27 @@ const _: () = assert!(size_of::<Texel>().is_multiple_of(16));
 impl Texel {
     /// The GPU record of a texel, with `active` the material's active lobes.
     pub fn new(t: &TexelRec, active: &[usize]) -> Self {
+        let least = |v: [f32; 4]| v[0].min(v[1]).min(v[2]);
         let mut coef = [[0.0f32; 4]; 6];
         for k in 0..3 {
             for tt in 0..2 {
                 for s in 0..3 {
-                    coef[k * 2 + tt][s] = t.coef[(k * 3 + s) * 2 + tt] as f32;
+                    coef[k * 2 + tt][s] = for_shader(tt, t.coef[(k * 3 + s) * 2 + tt]);
                 }
             }
+            coef[k * 2 + 1][3] = least(coef[k * 2 + 1]);
         }
+        let grey = (1..3).all(|k| coef[k * 2] == coef[0] && coef[k * 2 + 1] == coef[1]);
+        coef[0][3] = if grey { 2.0 } else { 0.0 };
         let mut lobes = [[0.0f32; 4]; 6];
         for (a, &s) in active.iter().enumerate() {
             for tt in 0..2 {
                 for k in 0..3 {
-                    lobes[a * 2 + tt][k] = t.coef[(k * 3 + s) * 2 + tt] as f32;
+                    lobes[a * 2 + tt][k] = for_shader(tt, t.coef[(k * 3 + s) * 2 + tt]);
                 }
             }
+            lobes[a * 2 + 1][3] = least(lobes[a * 2 + 1]);
+            lobes[a * 2][3] = shared(&lobes[a * 2], &lobes[a * 2 + 1]);
         }
         let v4 = |v: [f64; 3], w: f64| [v[0] as f32, v[1] as f32, v[2] as f32, w as f32];
         Texel {
@@ -175,7 +216,12 @@ impl Texel {
                 t.h[2] as f32,
                 t.theta_d as f32,
             ],
-            ld: [t.ld[0] as f32, t.ld[1] as f32, t.ld[2] as f32, 0.0],
+            ld: [
+                t.ld[0] as f32,
+                t.ld[1] as f32,
+                t.ld[2] as f32,
+                half_vector_pad(t.h),
+            ],
             coef,
         }
     }
