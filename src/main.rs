@@ -11,7 +11,8 @@ use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
 use clap::{Args, Parser, Subcommand};
-use matedit::io::job::{MaterialSource, NormalsSource, Plan, SceneOptions};
+use matedit::io::job::{Plan, SceneOptions};
+use matedit::io::source::{MaterialSource, NormalsSource};
 use matedit::io::{self, EnvSize, Format, Preview, Tonemap};
 use matedit::{Accuracy, Convention, Device, Error, Renderer, lod};
 

@@ -16,6 +16,7 @@ pub mod manifest;
 pub mod npy;
 pub mod png;
 pub mod resample;
+pub mod source;
 
 use std::path::{Path, PathBuf};
 
