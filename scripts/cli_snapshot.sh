@@ -4,7 +4,7 @@
 # README's example commands on inputs in the repository and ../shared/data (small sizes
 # where the README's take minutes), each output file's SHA-256 in OUTDIR/SHA256SUMS.
 #
-#   scripts/cli_snapshot.sh OUTDIR BINARY
+#   scripts/cli_snapshot.sh OUTDIR BINARY     (a binary named matedit: usage lines show its name)
 #   diff -r /tmp/before /tmp/after    # the same text, the same sums
 #
 # Runs on the CPU path (--device cpu) so that the bytes do not depend on an adapter. Lines

@@ -11,6 +11,9 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+use super::fit::{Fitted, render_one};
+use super::inputs::Inputs;
+use super::loss::psnr;
 use crate::envmap::{Convention, EnvMap};
 use crate::error::{Error, Result};
 use crate::io::{self, Preview};
@@ -87,6 +90,76 @@ fn file_error(path: &Path, e: Error) -> Error {
         Error::File { .. } => e,
         other => Error::file(path, other.to_string()),
     }
+}
+
+/// An error unless `dir` can become a fit folder: neither it nor a folder above it is a
+/// file. Checked before minutes of fitting; the folder is created, with its parents, when
+/// the fit is written.
+pub fn check_folder(dir: &Path) -> Result<()> {
+    match dir.ancestors().find(|p| p.exists() && !p.is_dir()) {
+        Some(blocker) => Err(Error::file(
+            dir,
+            format!("{} is a file, not a folder", blocker.display()),
+        )),
+        None => Ok(()),
+    }
+}
+
+/// A fit rendered at the image's full size and judged there.
+pub struct Judged {
+    /// The fitted material under the fitted (or given) light, at the image's size.
+    pub render: Image,
+    /// Its PSNR against the image over the mask (see [`psnr`]).
+    pub psnr: f64,
+}
+
+/// Renders `fitted` on `inputs`' normals with `camera`, and its PSNR.
+pub fn judge(
+    renderer: &Renderer,
+    inputs: &Inputs,
+    fitted: &Fitted,
+    camera: Camera,
+) -> Result<Judged> {
+    let render = render_one(renderer, inputs, &fitted.material, &fitted.env, camera)?;
+    let psnr = psnr(&render, &inputs.target, &inputs.mask);
+    Ok(Judged { render, psnr })
+}
+
+/// Writes the fit folder of `fitted` on `inputs` (see [`write`]): normals and image kept
+/// on the mask, 0 elsewhere.
+pub fn write_fit(
+    dir: &Path,
+    inputs: &Inputs,
+    fitted: &Fitted,
+    judged: &Judged,
+    report: &Report,
+) -> Result<Vec<PathBuf>> {
+    let masked = |v: &[[f32; 3]]| -> Vec<[f32; 3]> {
+        v.iter()
+            .zip(&inputs.mask)
+            .map(|(p, &m)| if m { *p } else { [0.0; 3] })
+            .collect()
+    };
+    let normals = NormalMap {
+        normals: masked(&inputs.normals.normals),
+        ..inputs.normals.clone()
+    };
+    let target = Image {
+        pixels: masked(&inputs.target.pixels),
+        ..inputs.target.clone()
+    };
+    write(
+        dir,
+        &Output {
+            material: &fitted.material,
+            env: &fitted.env,
+            normals: &normals,
+            target: &target,
+            render: &judged.render,
+            losses: &fitted.losses,
+            report,
+        },
+    )
 }
 
 /// Writes a fit folder (created if missing): every file or, on failure, none.

@@ -1,0 +1,70 @@
+//! `matedit render`: an image, or a manifest's batch of images, to EXR, NPY or PNG.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use matedit::io::{self, Format};
+
+use super::shared::{
+    Failure, PreviewArgs, SceneArgs, check_method, print_timings, renderer, report, runtime,
+    with_progress,
+};
+
+pub const EXAMPLES: &str = "\
+Examples:
+  matedit render -o sphere.png
+  matedit render -o gold.exr --preset gold --env studio.exr --env-size 128x256
+  matedit render -o face.npy --normals face_normals.png --material mat.json --fov 40
+  matedit render --batch scenes.json -o renders/
+
+Outputs by extension: .exr (linear float32 RGB), .npy (float32, H x W x 3),
+.png (8-bit sRGB preview: value * 2^exposure, then the tonemap, clamped to [0, 1],
+then sRGB-encoded). See docs/FORMATS.md for every file format and the manifest.";
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// Output image (.exr, .npy or .png); with --batch, the folder that relative outputs go to.
+    #[arg(short, long, value_name = "OUT", required_unless_present = "batch")]
+    output: Option<PathBuf>,
+    #[command(flatten)]
+    scene: SceneArgs,
+    #[command(flatten)]
+    preview: PreviewArgs,
+}
+
+pub fn run(args: &Args) -> Result<(), Failure> {
+    let plan = args.scene.plan(args.output.as_deref(), None)?;
+    for s in &plan.scenes {
+        io::check_output(&s.output, &[Format::Exr, Format::Npy, Format::Png])?;
+    }
+    let loaded = plan.load()?;
+    for n in &loaded.notes {
+        eprintln!("matedit: {n}");
+    }
+    let accuracy = args.scene.accuracy();
+    check_method(&accuracy, &loaded.batch)?;
+    let renderer = renderer(args.scene.device, args.scene.threads)?;
+    let start = Instant::now();
+    let (images, choices) = with_progress("rendering", || {
+        renderer.render_with(&loaded.batch, &accuracy)
+    })?;
+    if args.scene.timings {
+        print_timings(&renderer, start.elapsed());
+    }
+    report(&accuracy, &choices);
+    let preview = args.preview.preview();
+    let mut staged = Vec::with_capacity(images.len());
+    for (s, image) in plan.scenes.iter().zip(&images) {
+        let bytes = io::encode_image(&s.output, image, &preview).map_err(runtime)?;
+        staged.push(io::stage(&s.output, &bytes).map_err(runtime)?);
+    }
+    for (p, image) in io::commit_all(staged).map_err(runtime)?.iter().zip(&images) {
+        eprintln!(
+            "matedit: wrote {} ({}x{})",
+            p.display(),
+            image.width,
+            image.height
+        );
+    }
+    Ok(())
+}

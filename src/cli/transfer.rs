@@ -1,0 +1,45 @@
+//! `matedit transfer`: one fit's shape and light rendered with another fit's material.
+
+use std::path::PathBuf;
+
+use matedit::edit::dir;
+use matedit::io::{self, Format, Preview};
+use matedit::{Device, Renderer};
+
+use super::shared::{Failure, runtime};
+
+pub const EXAMPLES: &str = "\
+Examples:
+  matedit transfer --shape-light fits/jade --material fits/metal -o jade_as_metal.png";
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// The fit folder whose normals, light and camera are kept.
+    #[arg(long, value_name = "DIR")]
+    shape_light: PathBuf,
+    /// The fit folder (or material .json file) whose material is used.
+    #[arg(long, value_name = "DIR|FILE")]
+    material: PathBuf,
+    /// Output image (.exr, .npy or .png).
+    #[arg(short, long, value_name = "OUT")]
+    output: PathBuf,
+    /// Backend, as for `render`.
+    #[arg(long, value_name = "auto|gpu|cpu|reference", default_value = "auto")]
+    device: Device,
+}
+
+pub fn run(args: &Args) -> Result<(), Failure> {
+    io::check_output(&args.output, &[Format::Exr, Format::Npy, Format::Png])?;
+    let a = dir::read(&args.shape_light)?;
+    let material = if args.material.is_dir() {
+        dir::read(&args.material)?.material
+    } else {
+        io::load_material(&args.material)?
+    };
+    let renderer = Renderer::new(args.device)?;
+    let image = dir::transfer(&renderer, &a, &material)?;
+    let bytes = io::encode_image(&args.output, &image, &Preview::default())?;
+    io::write_atomic(&args.output, &bytes).map_err(runtime)?;
+    eprintln!("matedit: wrote {}", args.output.display());
+    Ok(())
+}
