@@ -13,6 +13,9 @@
 //! docs/synth.md describes the spec, the files and how to run shards on Slurm, Kubernetes
 //! and Ray.
 
+pub mod draw;
+mod files;
+pub mod sources;
 pub mod spec;
 pub mod tar;
 
@@ -27,7 +30,8 @@ use crate::error::{Error, Result};
 use crate::scene::Batch;
 use crate::{Device, Renderer};
 
-pub use spec::{Sample, Spec};
+pub use draw::Sample;
+pub use spec::Spec;
 
 /// The `format` of `manifest.json` and of the chunk records.
 pub const FORMAT: &str = "matedit-synth 1";
