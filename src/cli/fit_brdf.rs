@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use matedit::fit::job::{self, Bundle, Source};
+use matedit::fit::job::{self, Source};
 use matedit::fit::{Lobes, Options};
 use matedit::{Error, io};
 
@@ -141,7 +141,7 @@ pub fn run(args: &Args) -> Result<(), Failure> {
         staged.push(io::stage(o, &bytes).map_err(runtime)?);
     }
     if let Some(b) = &args.bundle {
-        staged.push(io::stage(b, &Bundle::new(&label, &fits).encode()).map_err(runtime)?);
+        staged.push(io::stage(b, &job::bundle(&label, &fits).encode()).map_err(runtime)?);
     }
     let mut written = io::commit_all(staged).map_err(runtime)?;
     if let (Some(dir), None) = (&args.output, to_file) {
