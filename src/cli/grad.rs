@@ -1,11 +1,11 @@
 //! `matedit grad`: dLoss/d(env, normals, material) for an upstream dLoss/dImage, as files
 //! in a folder per scene.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
-use matedit::io::{self, job::Plan};
-use matedit::{Batch, Error, Gradients, Wanted};
+use matedit::Wanted;
+use matedit::io;
 
 use super::shared::{
     Failure, SceneArgs, check_method, print_timings, renderer, report, runtime, with_progress,
@@ -62,23 +62,11 @@ impl Args {
     }
 }
 
-fn check_grad_dir(dir: &Path) -> Result<(), Failure> {
-    if dir.exists() && !dir.is_dir() {
-        return Err(Error::file(dir, "exists and is not a folder").into());
-    }
-    if !dir.exists() {
-        io::check_parent(dir)?;
-    }
-    Ok(())
-}
-
 pub fn run(args: &Args) -> Result<(), Failure> {
     let plan = args
         .scene
         .plan(args.output.as_deref(), args.upstream.as_deref())?;
-    for s in &plan.scenes {
-        check_grad_dir(&s.output)?;
-    }
+    io::outputs::check_gradient_folders(&plan)?;
     let loaded = plan.load()?;
     let upstream = plan.load_upstream(&loaded.batch)?;
     for n in &loaded.notes {
@@ -95,47 +83,9 @@ pub fn run(args: &Args) -> Result<(), Failure> {
         print_timings(&renderer, start.elapsed());
     }
     report(&accuracy, &choices);
-    // every scene's files are staged before any is put in place; on a failure the files
-    // already in place and the folders this run created are removed: a batch is written
-    // whole or not at all
-    let mut created = Vec::new();
-    let result = write_grads(&plan, &loaded.batch, &grads, args.wanted(), &mut created);
-    if result.is_err() {
-        io::remove_created(&created);
-    }
-    result
-}
-
-fn write_grads(
-    plan: &Plan,
-    batch: &Batch,
-    grads: &[Gradients],
-    wanted: Wanted,
-    created: &mut Vec<PathBuf>,
-) -> Result<(), Failure> {
-    let mut staged = Vec::new();
-    for ((spec, scene), g) in plan.scenes.iter().zip(batch.scenes()).zip(grads) {
-        let dir = &spec.output;
-        created.extend(io::create_dirs(dir).map_err(runtime)?);
-        let env = &scene.env;
-        let n = &scene.normals;
-        let mut files = Vec::new();
-        if wanted.env {
-            let bytes = io::npy::encode_rgb(env.width, env.height, &g.d_env);
-            files.push(("d_env.npy", bytes));
-        }
-        if wanted.normals {
-            let bytes = io::npy::encode_rgb(n.width, n.height, &g.d_normals);
-            files.push(("d_normals.npy", bytes));
-        }
-        if wanted.ctrl {
-            files.push(("d_material.json", io::json::encode_gradient(&g.d_ctrl)));
-        }
-        for (name, bytes) in &files {
-            staged.push(io::stage(&dir.join(name), bytes).map_err(runtime)?);
-        }
-    }
-    for p in io::commit_all(staged).map_err(runtime)? {
+    let written = io::outputs::write_gradients(&plan, &loaded.batch, &grads, args.wanted())
+        .map_err(runtime)?;
+    for p in written {
         eprintln!("matedit: wrote {}", p.display());
     }
     Ok(())

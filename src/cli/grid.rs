@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use matedit::edit::dir;
+use matedit::edit::{dir, transfer};
 use matedit::io::{self, Format};
 use matedit::{Device, Renderer};
 
@@ -43,7 +43,7 @@ pub fn run(args: &Args) -> Result<(), Failure> {
     let renderer = Renderer::new(args.device)?;
     let preview = args.preview.preview();
     let (w, h, rgb) = with_progress("rendering the grid", || {
-        dir::grid(&renderer, &fits, args.cell as usize, &preview)
+        transfer::grid(&renderer, &fits, args.cell as usize, &preview)
     })?;
     let bytes = io::png::encode_rgb8(w, h, &rgb)?;
     io::write_atomic(&args.output, &bytes).map_err(runtime)?;

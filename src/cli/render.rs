@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use matedit::io::{self, Format};
+use matedit::io;
 
 use super::shared::{
     Failure, PreviewArgs, SceneArgs, check_method, print_timings, renderer, report, runtime,
@@ -34,9 +34,7 @@ pub struct Args {
 
 pub fn run(args: &Args) -> Result<(), Failure> {
     let plan = args.scene.plan(args.output.as_deref(), None)?;
-    for s in &plan.scenes {
-        io::check_output(&s.output, &[Format::Exr, Format::Npy, Format::Png])?;
-    }
+    io::outputs::check_images(&plan)?;
     let loaded = plan.load()?;
     for n in &loaded.notes {
         eprintln!("matedit: {n}");
@@ -52,13 +50,9 @@ pub fn run(args: &Args) -> Result<(), Failure> {
         print_timings(&renderer, start.elapsed());
     }
     report(&accuracy, &choices);
-    let preview = args.preview.preview();
-    let mut staged = Vec::with_capacity(images.len());
-    for (s, image) in plan.scenes.iter().zip(&images) {
-        let bytes = io::encode_image(&s.output, image, &preview).map_err(runtime)?;
-        staged.push(io::stage(&s.output, &bytes).map_err(runtime)?);
-    }
-    for (p, image) in io::commit_all(staged).map_err(runtime)?.iter().zip(&images) {
+    let written =
+        io::outputs::write_images(&plan, &images, &args.preview.preview()).map_err(runtime)?;
+    for (p, image) in written.iter().zip(&images) {
         eprintln!(
             "matedit: wrote {} ({}x{})",
             p.display(),

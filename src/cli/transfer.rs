@@ -2,7 +2,7 @@
 
 use std::path::PathBuf;
 
-use matedit::edit::dir;
+use matedit::edit::{dir, transfer};
 use matedit::io::{self, Format, Preview};
 use matedit::{Device, Renderer};
 
@@ -31,13 +31,9 @@ pub struct Args {
 pub fn run(args: &Args) -> Result<(), Failure> {
     io::check_output(&args.output, &[Format::Exr, Format::Npy, Format::Png])?;
     let a = dir::read(&args.shape_light)?;
-    let material = if args.material.is_dir() {
-        dir::read(&args.material)?.material
-    } else {
-        io::load_material(&args.material)?
-    };
+    let material = dir::read_material(&args.material)?;
     let renderer = Renderer::new(args.device)?;
-    let image = dir::transfer(&renderer, &a, &material)?;
+    let image = transfer::transfer(&renderer, &a, &material)?;
     let bytes = io::encode_image(&args.output, &image, &Preview::default())?;
     io::write_atomic(&args.output, &bytes).map_err(runtime)?;
     eprintln!("matedit: wrote {}", args.output.display());

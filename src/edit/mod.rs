@@ -30,6 +30,7 @@ mod loss;
 pub mod options;
 mod params;
 pub mod plot;
+pub mod transfer;
 
 pub use fit::{Fitted, fit};
 pub use inputs::{Inputs, Shape};

@@ -14,6 +14,7 @@ pub mod job;
 pub mod json;
 pub mod manifest;
 pub mod npy;
+pub mod outputs;
 pub mod png;
 pub mod resample;
 pub mod source;
