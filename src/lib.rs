@@ -21,6 +21,22 @@
 //! let image = &renderer.render(&batch)?[0];
 //! # Ok::<(), matedit::Error>(())
 //! ```
+//!
+//! # Map
+//!
+//! Each layer uses only those beneath it (`tests/layout.rs` checks that no files and no
+//! top-level modules import each other around a circle):
+//!
+//! - what uses the renderer: [`edit`] (a material fitted to an image), [`synth`]
+//!   (datasets), [`fit`] (the DSBRDF fitted to measured [`brdf`]s), [`io`] (files in and
+//!   out);
+//! - [`renderer`]: [`Device`], [`Renderer`], [`Accuracy`];
+//! - [`lod`]: levels of detail, on any backend;
+//! - the backends: [`gpu`], [`cpu`], [`reference`];
+//! - beneath them: [`backend`] (the [`Backend`] trait) and [`prepare`] (prepared scenes);
+//! - scene types: [`scene`], [`material`], [`envmap`], [`camera`]; built-in inputs:
+//!   [`presets`], [`defaults`];
+//! - at the bottom: [`error`], [`spline`], [`splitmix`].
 
 #![allow(
     clippy::needless_range_loop,

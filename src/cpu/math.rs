@@ -1,4 +1,5 @@
-//! Short polynomial exp2, 2^u - 1 and ln for the fast CPU path, generic over the SIMD width.
+//! Short polynomial exp2, 2^u - 1 and ln for the fast CPU path, generic over the SIMD width,
+//! and the lane-mask test [`any`] that they and the per-pair terms share.
 //!
 //! No special cases beyond what a valid input reaches: arguments are clamped into range
 //! instead of producing inf or NaN, and ln is only taken of x > 0 (its callers handle

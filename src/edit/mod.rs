@@ -21,6 +21,12 @@
 //! which the initial material renders the target's mean brightness under a uniform light,
 //! so the light's mean colour stays neutral, the material takes the object's colour and
 //! keeps about the brightness of the preset it starts from, and the light takes the rest.
+//!
+//! Files: [`options`] (the light and the [`Options`]), [`inputs`] (what is fitted to:
+//! loaded, masked, at the work size), `params.rs` (the free parameters above), `loss.rs`
+//! (the data term, the priors, [`psnr`]), [`fit`](mod@fit) (Adam, [`adam`]), [`dir`] (fit folders:
+//! checked, judged, written and read), [`transfer`] (transfer and the grid), [`plot`]
+//! (loss.png).
 
 pub mod adam;
 pub mod dir;

@@ -7,6 +7,11 @@
 //! nothing here panics on user input. Outputs are written to a temporary file in the
 //! destination folder and renamed into place, so a failed run leaves no partial file.
 //! docs/FORMATS.md describes every format.
+//!
+//! Files: the formats ([`exr`], [`npy`], [`png`], [`json`]) and [`resample`] (env map
+//! sizes) beneath the loaders here; [`info`] (what a file holds); scenes in: [`source`]
+//! (where normals and materials come from), [`manifest`] (batch files) and [`job`] (options
+//! to a loaded batch); results out: [`outputs`] (images and gradient folders).
 
 pub mod exr;
 pub mod info;

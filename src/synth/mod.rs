@@ -12,6 +12,10 @@
 //!
 //! docs/synth.md describes the spec, the files and how to run shards on Slurm, Kubernetes
 //! and Ray.
+//!
+//! Files: [`spec`] (the spec and its top-level keys) on [`sources`] (its source lists) on
+//! `files.rs` (the files and folders it names); [`draw`] (sample k); [`tar`] (a chunk's
+//! bytes); this file (shards, chunk records, resuming, the manifest).
 
 pub mod draw;
 mod files;
