@@ -226,7 +226,7 @@ pub(super) fn normals(
             }
             _ => {
                 let files =
-                    files_of(&base, r.file, r.folder, &["exr", "npy", "png"]).map_err(at)?;
+                    files_of(base, r.file, r.folder, &["exr", "npy", "png"]).map_err(at)?;
                 let mut maps = Vec::with_capacity(files.len());
                 for f in files {
                     let m = crate::io::load_normals(&f.path).map_err(|e| at(e.to_string()))?;
@@ -273,7 +273,7 @@ pub(super) fn envs(
         };
         one_of(&[r.file.is_some(), r.folder.is_some()], &["file", "folder"]).map_err(at)?;
         let weight = weight(r.weight).map_err(at)?;
-        let files = files_of(&base, r.file, r.folder, &["exr", "npy"]).map_err(at)?;
+        let files = files_of(base, r.file, r.folder, &["exr", "npy"]).map_err(at)?;
         let mut maps = Vec::with_capacity(files.len());
         for f in files {
             let loaded = crate::io::load_env(&f.path, convention).map_err(|e| at(e.to_string()))?;
@@ -333,7 +333,7 @@ pub(super) fn materials(
             }
             1 => {
                 let label = r.file.unwrap_or_default();
-                let files = files_of(&base, Some(label.clone()), None, &["json"]).map_err(at)?;
+                let files = files_of(base, Some(label.clone()), None, &["json"]).map_err(at)?;
                 let [f] = &files[..] else {
                     return Err(at(format!("{label}: is a folder; give a material file")));
                 };
