@@ -225,8 +225,7 @@ pub(super) fn normals(
                 NormalsSource::Bumpy
             }
             _ => {
-                let files =
-                    files_of(base, r.file, r.folder, &["exr", "npy", "png"]).map_err(at)?;
+                let files = files_of(base, r.file, r.folder, &["exr", "npy", "png"]).map_err(at)?;
                 let mut maps = Vec::with_capacity(files.len());
                 for f in files {
                     let m = crate::io::load_normals(&f.path).map_err(|e| at(e.to_string()))?;
