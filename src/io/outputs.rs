@@ -7,8 +7,11 @@ use std::path::{Path, PathBuf};
 
 use super::job::Plan;
 use super::png::Preview;
-use super::{Format, check_output, check_parent, commit_all, create_dirs, encode_image};
-use super::{json, npy, remove_created, stage};
+use super::write::{
+    Staged, check_output, check_parent, commit_all, create_dirs, encode_image, remove_created,
+    stage,
+};
+use super::{Format, json, npy};
 use crate::error::{Error, Result};
 use crate::scene::{Batch, Gradients, Image, Wanted};
 
@@ -73,7 +76,7 @@ fn stage_gradients(
     grads: &[Gradients],
     wanted: Wanted,
     created: &mut Vec<PathBuf>,
-) -> Result<Vec<super::Staged>> {
+) -> Result<Vec<Staged>> {
     let mut staged = Vec::new();
     for ((spec, scene), g) in plan.scenes.iter().zip(batch.scenes()).zip(grads) {
         let dir = &spec.output;
