@@ -62,6 +62,9 @@ run info-png info p.png
 run presets presets
 run presets-gold presets gold
 run fit-brdf fit-brdf --nbrdf "$repo/data/merl/merl_nbrdf.json" --name alum-bronze -o alum.json --lobes 2
+run fit-brdf-folder fit-brdf --nbrdf "$repo/data/merl/merl_nbrdf.json" --name alum-bronze -o alum/ --bundle alum-bundle.json --lobes 1
+run fit-brdf-many fit-brdf --nbrdf "$repo/data/merl/merl_nbrdf.json" -o all.json
+run fit-brdf-no-bundle-folder fit-brdf --nbrdf "$repo/data/merl/merl_nbrdf.json" --bundle missing/b.json
 for m in jade clay_studio metal_shiny; do
     run "fit-$m" fit --image "$shared/matcaps/$m.exr" --sphere --steps 40 --work-size 32 --device cpu -o "fits/$m"
 done

@@ -6,7 +6,6 @@ use std::time::Instant;
 
 use matedit::fit::job::{self, Source};
 use matedit::fit::{Lobes, Options};
-use matedit::{Error, io};
 
 use super::shared::{Failure, progress_bar, runtime};
 
@@ -81,25 +80,13 @@ pub fn run(args: &Args) -> Result<(), Failure> {
         (None, None) => unreachable!("clap requires --nbrdf or --merl"),
     };
     // Outputs are checked before minutes of fitting.
-    if let Some(b) = &args.bundle {
-        io::check_parent(b)?;
-    }
+    let outputs = job::Outputs {
+        output: args.output.as_deref(),
+        bundle: args.bundle.as_deref(),
+    };
+    outputs.check_bundle()?;
     let brdfs = job::load(&source)?;
-    let to_file = args.output.as_ref().filter(|o| {
-        o.extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("json"))
-    });
-    if let (Some(o), true) = (to_file, brdfs.len() > 1) {
-        return Err(Error::Invalid(format!(
-            "-o {}: {label} holds {} materials; give a folder for one NAME.json each, or pick one with --name",
-            o.display(),
-            brdfs.len()
-        ))
-        .into());
-    }
-    if let Some(o) = to_file {
-        io::check_parent(o)?;
-    }
+    outputs.check_file(&label, brdfs.len())?;
     let options = Options {
         lobes: args.lobes,
         tolerance: args.tolerance,
@@ -133,20 +120,7 @@ pub fn run(args: &Args) -> Result<(), Failure> {
             "s"
         }
     );
-    let mut staged = Vec::new();
-    if let Some(o) = to_file {
-        let f = &fits[0];
-        let bytes =
-            io::json::encode_material(&f.best().material, Some(&job::description(f, &label)));
-        staged.push(io::stage(o, &bytes).map_err(runtime)?);
-    }
-    if let Some(b) = &args.bundle {
-        staged.push(io::stage(b, &job::bundle(&label, &fits).encode()).map_err(runtime)?);
-    }
-    let mut written = io::commit_all(staged).map_err(runtime)?;
-    if let (Some(dir), None) = (&args.output, to_file) {
-        written.extend(job::write_folder(dir, &fits, &label).map_err(runtime)?);
-    }
+    let written = outputs.write(&fits, &label).map_err(runtime)?;
     if written.len() <= 3 {
         for p in &written {
             eprintln!("matedit: wrote {}", p.display());

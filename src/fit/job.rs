@@ -153,6 +153,68 @@ pub fn bundle(source: &str, fits: &[Fitted]) -> Bundle {
     }
 }
 
+/// Where `matedit fit-brdf` writes: `output` is one material's file when it ends in
+/// `.json`, else a folder of NAME.json files; `bundle` is one file with every fit.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Outputs<'a> {
+    /// A material file or a folder.
+    pub output: Option<&'a Path>,
+    /// A bundle file.
+    pub bundle: Option<&'a Path>,
+}
+
+impl Outputs<'_> {
+    /// `output`, if it is one material's file.
+    pub fn file(&self) -> Option<&Path> {
+        self.output.filter(|o| {
+            o.extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("json"))
+        })
+    }
+
+    /// Checked before anything is read: the bundle's folder exists.
+    pub fn check_bundle(&self) -> Result<()> {
+        match self.bundle {
+            Some(b) => io::check_parent(b),
+            None => Ok(()),
+        }
+    }
+
+    /// Checked before minutes of fitting `count` materials from `source`: a material file
+    /// takes one, in a folder that exists.
+    pub fn check_file(&self, source: &str, count: usize) -> Result<()> {
+        let Some(o) = self.file() else {
+            return Ok(());
+        };
+        if count > 1 {
+            return Err(Error::Invalid(format!(
+                "-o {}: {source} holds {count} materials; give a folder for one NAME.json each, or pick one with --name",
+                o.display(),
+            )));
+        }
+        io::check_parent(o)
+    }
+
+    /// Writes the fits made from `source`: the material file and the bundle together (both
+    /// or neither), then the folder; the paths written.
+    pub fn write(&self, fits: &[Fitted], source: &str) -> Result<Vec<PathBuf>> {
+        let mut staged = Vec::new();
+        if let (Some(o), Some(f)) = (self.file(), fits.first()) {
+            let bytes =
+                io::json::encode_material(&f.best().material, Some(&description(f, source)));
+            staged.push(io::stage(o, &bytes)?);
+        }
+        if let Some(b) = self.bundle {
+            staged.push(io::stage(b, &bundle(source, fits).encode())?);
+        }
+        let mut written = io::commit_all(staged)?;
+        if let (Some(dir), None) = (self.output, self.file()) {
+            written.extend(write_folder(dir, fits, source)?);
+        }
+        Ok(written)
+    }
+}
+
 /// Writes each fit's material as NAME.json into `dir` (created if missing), all or none.
 pub fn write_folder(dir: &Path, fits: &[Fitted], source: &str) -> Result<Vec<PathBuf>> {
     std::fs::create_dir_all(dir)
