@@ -9,6 +9,7 @@ use matedit::{Camera, Convention, Device, Error};
 
 use super::shared::{Failure, parse_fov, progress_bar, renderer, runtime};
 
+/// Shown after the options by `matedit help fit`.
 pub const EXAMPLES: &str = "\
 Examples:
   matedit fit --image jade.exr --sphere -o fits/jade
@@ -19,6 +20,7 @@ Optimises the 108 control points (and, without --env, a low-resolution light) wi
 through the layer's backward pass. Writes DIR/material.json, env.exr, render.exr,
 render.png, compare.png, loss.png, normals.npy, target.exr and report.json (psnr, steps, seconds).";
 
+/// The options of `matedit fit`.
 #[derive(clap::Args)]
 pub struct Args {
     /// The image to fit: .exr or .npy (linear RGB, H x W x 3) or .png (sRGB, decoded to linear).
@@ -73,6 +75,7 @@ pub struct Args {
     output: PathBuf,
 }
 
+/// Runs `matedit fit`.
 pub fn run(args: &Args) -> Result<(), Failure> {
     edit::dir::check_folder(&args.output)?;
     let shape = match (&args.normals, args.sphere) {

@@ -9,6 +9,7 @@ use matedit::fit::{Lobes, Options};
 
 use super::shared::{Failure, progress_bar, runtime};
 
+/// Shown after the options by `matedit help fit-brdf`.
 pub const EXAMPLES: &str = "\
 Examples:
   matedit fit-brdf --merl gold-metallic-paint.binary -o gold.json
@@ -22,6 +23,7 @@ DSBRDF cannot represent, is averaged with the weights cos theta_i cos theta_o. W
 is within --tolerance of the 3-lobe fit's is kept; unused lobes have m0 = 0.
 --bundle writes every fit into one file, the format of the shipped presets.";
 
+/// The options of `matedit fit-brdf`.
 #[derive(clap::Args)]
 pub struct Args {
     /// An NBRDF network file (one or more materials), e.g. data/merl/merl_nbrdf.json.
@@ -67,6 +69,7 @@ fn parse_tolerance_slack(v: &str) -> Result<f64, String> {
     }
 }
 
+/// Runs `matedit fit-brdf`.
 pub fn run(args: &Args) -> Result<(), Failure> {
     let (source, label) = match (&args.nbrdf, &args.merl) {
         (Some(path), _) => (

@@ -11,6 +11,7 @@ use super::shared::{
     Failure, SceneArgs, check_method, print_timings, renderer, report, runtime, with_progress,
 };
 
+/// Shown after the options by `matedit help grad`.
 pub const EXAMPLES: &str = "\
 Examples:
   matedit grad -o grads/ --upstream dloss_dimage.npy
@@ -23,6 +24,7 @@ DIR/d_material.json ({\"ctrl\": [108 numbers]}); --only ctrl (or env, normals, a
 comma-separated list) computes and writes only those, in less time. With --batch, each
 scene's 'output' is its folder and 'upstream' its gradient file.";
 
+/// The options of `matedit grad`.
 #[derive(clap::Args)]
 pub struct Args {
     /// Output folder (created if missing); with --batch, the folder that relative outputs go to.
@@ -62,6 +64,7 @@ impl Args {
     }
 }
 
+/// Runs `matedit grad`.
 pub fn run(args: &Args) -> Result<(), Failure> {
     let plan = args
         .scene

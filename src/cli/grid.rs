@@ -8,6 +8,7 @@ use matedit::{Device, Renderer};
 
 use super::shared::{Failure, PreviewArgs, runtime, with_progress};
 
+/// Shown after the options by `matedit help grid`.
 pub const EXAMPLES: &str = "\
 Examples:
   matedit grid fits/jade fits/metal fits/clay -o grid.png
@@ -15,6 +16,7 @@ Examples:
 Row i keeps fit i's shape and light, column j brings fit j's material; the diagonal
 shows the images fitted to.";
 
+/// The options of `matedit grid`.
 #[derive(clap::Args)]
 pub struct Args {
     /// Fit folders from `matedit fit`, in the grid's order.
@@ -33,6 +35,7 @@ pub struct Args {
     device: Device,
 }
 
+/// Runs `matedit grid`.
 pub fn run(args: &Args) -> Result<(), Failure> {
     io::check_output(&args.output, &[Format::Png])?;
     let fits = args

@@ -6,17 +6,20 @@ use matedit::{Error, io, presets};
 
 use super::shared::Failure;
 
+/// Shown after the options by `matedit help presets`.
 pub const EXAMPLES: &str = "\
 Examples:
   matedit presets
   matedit presets gold > gold.json     (then edit it and use --material gold.json)";
 
+/// The options of `matedit presets`.
 #[derive(clap::Args)]
 pub struct Args {
     /// Print this preset's material JSON instead of the list.
     name: Option<String>,
 }
 
+/// Runs `matedit presets`.
 pub fn run(args: &Args) -> Result<(), Failure> {
     match args.name.as_deref() {
         None => {

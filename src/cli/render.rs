@@ -10,6 +10,7 @@ use super::shared::{
     with_progress,
 };
 
+/// Shown after the options by `matedit help render`.
 pub const EXAMPLES: &str = "\
 Examples:
   matedit render -o sphere.png
@@ -21,6 +22,7 @@ Outputs by extension: .exr (linear float32 RGB), .npy (float32, H x W x 3),
 .png (8-bit sRGB preview: value * 2^exposure, then the tonemap, clamped to [0, 1],
 then sRGB-encoded). See docs/FORMATS.md for every file format and the manifest.";
 
+/// The options of `matedit render`.
 #[derive(clap::Args)]
 pub struct Args {
     /// Output image (.exr, .npy or .png); with --batch, the folder that relative outputs go to.
@@ -32,6 +34,7 @@ pub struct Args {
     preview: PreviewArgs,
 }
 
+/// Runs `matedit render`.
 pub fn run(args: &Args) -> Result<(), Failure> {
     let plan = args.scene.plan(args.output.as_deref(), None)?;
     io::outputs::check_images(&plan)?;

@@ -13,7 +13,9 @@ use matedit::{Accuracy, Batch, Convention, Device, Error, Renderer, lod};
 
 /// A failure and the exit code it gets.
 pub struct Failure {
+    /// What went wrong, printed as one line.
     pub error: Error,
+    /// The exit code: 2 for bad usage or input, 1 for a runtime failure.
     pub code: u8,
 }
 
@@ -30,6 +32,7 @@ pub fn runtime(error: Error) -> Failure {
     Failure { error, code: 1 }
 }
 
+/// The scene options of `render` and `grad`, their device and their levels of detail.
 #[derive(clap::Args)]
 pub struct SceneArgs {
     /// Normal map: .exr (channels R, G, B = n.x, n.y, n.z), .npy (H x W x 3) or .png (8-bit, n = 2v/255 - 1).
@@ -77,6 +80,7 @@ pub struct SceneArgs {
 }
 
 impl SceneArgs {
+    /// `--tolerance` or `--method`, else exact.
     pub fn accuracy(&self) -> Accuracy {
         match (self.tolerance, self.method) {
             (Some(t), _) => Accuracy::Tolerance(t),
@@ -124,6 +128,7 @@ impl SceneArgs {
     }
 }
 
+/// How a PNG output shows linear values.
 #[derive(clap::Args)]
 pub struct PreviewArgs {
     /// PNG only: exposure in stops; values are multiplied by 2^EV.
@@ -140,6 +145,7 @@ pub struct PreviewArgs {
 }
 
 impl PreviewArgs {
+    /// The options as the library takes them.
     pub fn preview(&self) -> Preview {
         Preview {
             exposure: self.exposure,
@@ -148,6 +154,7 @@ impl PreviewArgs {
     }
 }
 
+/// `--tolerance`: a positive number.
 pub fn parse_tolerance(s: &str) -> Result<f64, String> {
     let v: f64 = s.parse().map_err(|_| format!("'{s}' is not a number"))?;
     if v.is_finite() && v > 0.0 {
@@ -157,6 +164,7 @@ pub fn parse_tolerance(s: &str) -> Result<f64, String> {
     }
 }
 
+/// `--fov`: degrees in (0, 180).
 pub fn parse_fov(s: &str) -> Result<f64, String> {
     let v: f64 = s.parse().map_err(|_| format!("'{s}' is not a number"))?;
     if v.is_finite() && v > 0.0 && v < 180.0 {

@@ -8,6 +8,7 @@ use matedit::{Device, Error};
 
 use super::shared::{Failure, progress_bar, runtime, threads};
 
+/// Shown after the options by `matedit help synth`.
 pub const EXAMPLES: &str = "\
 Examples:
   matedit synth spec.json -o dataset/
@@ -23,6 +24,7 @@ chunk-NNNNNN.json beside each, and DIR/manifest.json. Sample k depends on the sp
 its seed and k alone: any split into shards writes the same chunk files, bit for bit.
 A re-run skips the chunks already complete. See docs/synth.md.";
 
+/// The options of `matedit synth`.
 #[derive(clap::Args)]
 pub struct Args {
     /// The spec: a JSON file naming the sources, the count, the sizes and the seed (see docs/synth.md).
@@ -44,6 +46,7 @@ pub struct Args {
     verify: bool,
 }
 
+/// Runs `matedit synth`.
 pub fn run(args: &Args) -> Result<(), Failure> {
     let spec = synth::Spec::load(&args.spec)?;
     threads(args.threads);

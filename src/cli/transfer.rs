@@ -8,10 +8,12 @@ use matedit::{Device, Renderer};
 
 use super::shared::{Failure, runtime};
 
+/// Shown after the options by `matedit help transfer`.
 pub const EXAMPLES: &str = "\
 Examples:
   matedit transfer --shape-light fits/jade --material fits/metal -o jade_as_metal.png";
 
+/// The options of `matedit transfer`.
 #[derive(clap::Args)]
 pub struct Args {
     /// The fit folder whose normals, light and camera are kept.
@@ -28,6 +30,7 @@ pub struct Args {
     device: Device,
 }
 
+/// Runs `matedit transfer`.
 pub fn run(args: &Args) -> Result<(), Failure> {
     io::check_output(&args.output, &[Format::Exr, Format::Npy, Format::Png])?;
     let a = dir::read(&args.shape_light)?;
