@@ -29,7 +29,7 @@ impl PassTiming {
 
 /// A backend: something that runs the layer's forward and backward passes.
 ///
-/// A backend works on [`prepare::Prepared`] scenes: the levels of detail in [`lod`] hand
+/// A backend works on [`prepare::Prepared`] scenes: the levels of detail in [`crate::lod`] hand
 /// it reduced scenes (a downsampled map, a table's nodes as pixels), so every backend runs
 /// every approximation.
 pub trait Backend: Send + Sync {

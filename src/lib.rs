@@ -6,7 +6,7 @@
 //! [`Material`], [`EnvMap`]); a [`Renderer`] runs the forward pass ([`Renderer::render`])
 //! and the vector-Jacobian product ([`Renderer::backward`]) on whichever backend it holds:
 //! WGSL compute shaders through wgpu ([`gpu`]), the fast f32 SIMD CPU path ([`cpu`]) or
-//! the f64 CPU reference ([`reference`]) that the other two are tested against.
+//! the f64 CPU reference ([`reference`](mod@reference)) that the other two are tested against.
 //!
 //! ```no_run
 //! use matedit::{Batch, Camera, Device, EnvMap, Material, NormalMap, Renderer, Scene};
@@ -32,7 +32,7 @@
 //!   out);
 //! - [`renderer`]: [`Device`], [`Renderer`], [`Accuracy`];
 //! - [`lod`]: levels of detail, on any backend;
-//! - the backends: [`gpu`], [`cpu`], [`reference`];
+//! - the backends: [`gpu`], [`cpu`], [`reference`](mod@reference);
 //! - beneath them: [`backend`] (the [`Backend`] trait) and [`prepare`] (prepared scenes);
 //! - scene types: [`scene`], [`material`], [`envmap`], [`camera`]; built-in inputs:
 //!   [`presets`], [`defaults`];

@@ -125,7 +125,7 @@ pub fn judge(
     Ok(Judged { render, psnr })
 }
 
-/// Writes the fit folder of `fitted` on `inputs` (see [`write`]): normals and image kept
+/// Writes the fit folder of `fitted` on `inputs` (see [`write()`]): normals and image kept
 /// on the mask, 0 elsewhere.
 pub fn write_fit(
     dir: &Path,
@@ -235,7 +235,7 @@ fn side_by_side(images: &[&Image], preview: &Preview) -> Result<Vec<u8>> {
     io::png::encode_rgb8(total, h, &rgb)
 }
 
-/// Reads a fit folder written by [`write`].
+/// Reads a fit folder written by [`write()`].
 pub fn read(dir: &Path) -> Result<FitDir> {
     if !dir.is_dir() {
         return Err(Error::file(

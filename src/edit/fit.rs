@@ -1,4 +1,4 @@
-//! The fit itself: Adam on the parameters of [`super::params`] through the layer's
+//! The fit itself: Adam on the parameters of `params.rs` through the layer's
 //! backward pass, the step halved when the loss stalls.
 
 use std::time::Instant;

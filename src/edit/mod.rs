@@ -1,6 +1,6 @@
 //! Material editing by inverse rendering: the material (and, if asked, a low-resolution
 //! environment map) that makes the layer reproduce an image, found with Adam through the
-//! layer's own backward pass on whichever backend the [`Renderer`] holds; then transfer
+//! layer's own backward pass on whichever backend the [`crate::Renderer`] holds; then transfer
 //! (one image's shape and light with another's material) and the grid of transfers.
 //!
 //! Parameterisation: every scale control point is `sign * exp(u)` with its sign taken

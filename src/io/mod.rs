@@ -11,7 +11,7 @@
 //! Files: the formats ([`exr`], [`npy`], [`png`], [`json`]) and [`resample`] (env map
 //! sizes) beneath the loaders here; [`info`] (what a file holds); scenes in: [`source`]
 //! (where normals and materials come from), [`manifest`] (batch files) and [`job`] (options
-//! to a loaded batch); results out: [`outputs`] (images and gradient folders) on [`write`]
+//! to a loaded batch); results out: [`outputs`] (images and gradient folders) on [`write`](mod@write)
 //! (checks before work, atomic writes).
 
 pub mod exr;
