@@ -34,8 +34,8 @@
 //! - [`lod`]: levels of detail, on any backend;
 //! - the backends: [`gpu`], [`cpu`], [`reference`](mod@reference);
 //! - beneath them: [`backend`] (the [`Backend`] trait) and [`prepare`] (prepared scenes);
-//! - scene types: [`scene`], [`material`], [`envmap`], [`camera`]; built-in inputs:
-//!   [`presets`], [`defaults`];
+//! - scene types: [`scene`], [`normals`], [`material`], [`envmap`], [`camera`];
+//!   built-in inputs: [`presets`], [`defaults`];
 //! - at the bottom: [`error`], [`spline`], [`splitmix`].
 
 #![allow(
@@ -56,6 +56,7 @@ pub mod gpu;
 pub mod io;
 pub mod lod;
 pub mod material;
+pub mod normals;
 pub mod prepare;
 pub mod presets;
 pub mod reference;

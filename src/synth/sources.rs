@@ -160,7 +160,7 @@ fn loader_stable(mut m: NormalMap) -> NormalMap {
         if len < crate::scene::BACKGROUND_EPS {
             *n = [0.0; 3];
         } else if v.map(|c| (c / len) as f32) != *n {
-            *n = crate::scene::loader_stable_unit(v);
+            *n = crate::normals::loader_stable_unit(v);
         }
     }
     m
