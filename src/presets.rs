@@ -1,7 +1,8 @@
 //! Built-in materials: the 90 MERL materials fitted by [`crate::fit`] (their control
 //! points ship in `data/merl/fits.json`, which `matedit fit-brdf --nbrdf
 //! data/merl/merl_nbrdf.json --bundle data/merl/fits.json` regenerates), and a handful of
-//! plausible parameter sets made by hand.
+//! plausible parameter sets made by hand. The bundle format of that file ([`Bundle`]) lives
+//! here, beneath the fit that writes it.
 //!
 //! Each hand-made preset has up to three lobes, f = sum_s (exp(m0_s x^m1_s) - 1) per channel:
 //! - a diffuse lobe (m1 = 0, so f = exp(m0) - 1 is constant), with m0 = ln(1 + rho / pi)
@@ -12,8 +13,9 @@
 //! The scales are chosen so that the directional albedo stays below 1 and renders under
 //! the default environment have values of order 0.1 to 10.
 
-use crate::fit::job::Bundle;
-use crate::material::{Material, N_CHANNELS, N_LOBES, N_PARAMS, idx};
+use serde::{Deserialize, Serialize};
+
+use crate::material::{Material, N_CHANNELS, N_LOBES, N_PARAMS, idx, material_from_ctrl};
 use crate::spline::N_CTRL_POINTS;
 
 /// The preset used when no material is given.
@@ -239,6 +241,72 @@ pub fn names() -> Vec<&'static str> {
 /// The material of the preset called `name`, if there is one.
 pub fn lookup(name: &str) -> Option<Material> {
     all().iter().find(|p| p.name == name).map(Preset::material)
+}
+
+/// The bundle file: every fit of a run, as the presets ship them.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Bundle {
+    /// Always [`BUNDLE_FORMAT`].
+    pub format: String,
+    /// What the fits were made from, for the record.
+    pub source: String,
+    /// One entry per material, in name order.
+    pub materials: Vec<BundleEntry>,
+}
+
+/// One material of a [`Bundle`].
+#[derive(Clone, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BundleEntry {
+    /// The material's name.
+    pub name: String,
+    /// Lobes kept.
+    pub lobes: usize,
+    /// The BRDF error of the fit with 1, 2, 3 lobes (those tried).
+    pub brdf_error: Vec<f64>,
+    /// The judge's image error (RMSE over peak) of each, if judged.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub image_error: Vec<f64>,
+    /// The 108 control points.
+    pub ctrl: Vec<f64>,
+}
+
+/// The bundle format's name.
+pub const BUNDLE_FORMAT: &str = "matedit-fits-1";
+
+impl Bundle {
+    /// Parses a bundle's text; the error names the item.
+    pub fn parse(text: &str) -> std::result::Result<Self, String> {
+        let b: Bundle =
+            serde_json::from_str(text).map_err(|e| format!("not a fits bundle: {e}"))?;
+        if b.format != BUNDLE_FORMAT {
+            return Err(format!(
+                "format is '{}'; expected '{BUNDLE_FORMAT}'",
+                b.format
+            ));
+        }
+        for m in &b.materials {
+            material_from_ctrl(m.name.clone(), &m.ctrl)
+                .map_err(|e| format!("material '{}': {e}", m.name))?;
+        }
+        Ok(b)
+    }
+
+    /// The materials.
+    pub fn materials(&self) -> Vec<Material> {
+        self.materials
+            .iter()
+            .map(|m| Material::new(m.name.clone(), &m.ctrl).expect("checked by parse"))
+            .collect()
+    }
+
+    /// Pretty JSON, one number a line.
+    pub fn encode(&self) -> Vec<u8> {
+        let mut out = serde_json::to_vec_pretty(self).unwrap_or_default();
+        out.push(b'\n');
+        out
+    }
 }
 
 #[cfg(test)]

@@ -1,4 +1,5 @@
-//! Short polynomial exp2, 2^u - 1 and ln for the fast CPU path, generic over the SIMD width.
+//! Short polynomial exp2, 2^u - 1 and ln for the fast CPU path, generic over the SIMD width,
+//! and the lane-mask test [`any`] that they and the per-pair terms share.
 //!
 //! No special cases beyond what a valid input reaches: arguments are clamped into range
 //! instead of producing inf or NaN, and ln is only taken of x > 0 (its callers handle
@@ -96,6 +97,19 @@ pub fn exp2<S: Simd>(s: S, t: S::f32s) -> S::f32s {
     s.mul_f32s(p, pow2_from_magic(s, z))
 }
 
+/// Whether any lane of `m` is set. pulp's `first_true_m32s` walks the lanes one by one
+/// where masks are vectors (AVX2, NEON); AVX2 has one instruction for it.
+#[inline(always)]
+pub fn any<S: Simd>(s: S, m: S::m32s) -> bool {
+    #[cfg(target_arch = "x86_64")]
+    if let Some(v3) = (&s as &dyn std::any::Any).downcast_ref::<pulp::x86::V3>() {
+        let bits: S::u32s = s.select_u32s(m, s.splat_u32s(!0), s.splat_u32s(0));
+        let v: std::arch::x86_64::__m256 = bytemuck::cast(bits);
+        return v3.avx._mm256_movemask_ps(v) != 0;
+    }
+    s.first_true_m32s(m) < S::F32_LANES
+}
+
 /// 2^u - 1 without cancellation for small |u|, u clamped to [-126, 126]: u = k + f with
 /// |f| <= 1/2 (exact in f32), 2^u - 1 = 2^k (2^f - 1) + (2^k - 1). The lobes are
 /// exp(a x^b) - 1 = 2^(a log2(e) x^b) - 1 with a log2(e) folded into the scale columns,
@@ -105,7 +119,7 @@ pub fn exp2<S: Simd>(s: S, t: S::f32s) -> S::f32s {
 pub fn exp2m1<S: Simd>(s: S, u: S::f32s) -> S::f32s {
     let abs = s.and_f32s(u, s.transmute_f32s_u32s(s.splat_u32s(0x7FFF_FFFF)));
     let big = s.greater_than_or_equal_f32s(abs, s.splat_f32s(0.5));
-    if !super::pair::any(s, big) {
+    if !any(s, big) {
         return s.mul_f32s(u, horner(s, u, &EXP2M1_Q));
     }
     #[cfg(target_arch = "x86_64")]

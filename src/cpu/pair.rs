@@ -5,7 +5,7 @@
 
 use pulp::Simd;
 
-use super::math::ln_1m;
+use super::math::{any, ln_1m};
 use super::table::{LobePlan, Px, TexelTable};
 
 use crate::prepare::HALF_VECTOR_EPS;
@@ -84,19 +84,6 @@ pub fn dpow<S: Simd>(s: S, m1: S::f32s, xb: S::f32s, inv_x: S::f32s, pos: S::m32
         s.splat_f32s(DPOW_MAX),
     );
     s.select_f32s(pos, dp, s.splat_f32s(0.0))
-}
-
-/// Whether any lane of `m` is set. pulp's `first_true_m32s` walks the lanes one by one
-/// where masks are vectors (AVX2, NEON); AVX2 has one instruction for it.
-#[inline(always)]
-pub fn any<S: Simd>(s: S, m: S::m32s) -> bool {
-    #[cfg(target_arch = "x86_64")]
-    if let Some(v3) = (&s as &dyn std::any::Any).downcast_ref::<pulp::x86::V3>() {
-        let bits: S::u32s = s.select_u32s(m, s.splat_u32s(!0), s.splat_u32s(0));
-        let v: std::arch::x86_64::__m256 = bytemuck::cast(bits);
-        return v3.avx._mm256_movemask_ps(v) != 0;
-    }
-    s.first_true_m32s(m) < S::F32_LANES
 }
 
 #[inline(always)]

@@ -11,10 +11,13 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+use super::fit::{Fitted, render_one};
+use super::inputs::Inputs;
+use super::loss::psnr;
 use crate::envmap::{Convention, EnvMap};
 use crate::error::{Error, Result};
 use crate::io::{self, Preview};
-use crate::{Batch, Camera, Image, Material, NormalMap, Renderer, Scene};
+use crate::{Camera, Image, Material, NormalMap, Renderer};
 
 /// `report.json`.
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -87,6 +90,76 @@ fn file_error(path: &Path, e: Error) -> Error {
         Error::File { .. } => e,
         other => Error::file(path, other.to_string()),
     }
+}
+
+/// An error unless `dir` can become a fit folder: neither it nor a folder above it is a
+/// file. Checked before minutes of fitting; the folder is created, with its parents, when
+/// the fit is written.
+pub fn check_folder(dir: &Path) -> Result<()> {
+    match dir.ancestors().find(|p| p.exists() && !p.is_dir()) {
+        Some(blocker) => Err(Error::file(
+            dir,
+            format!("{} is a file, not a folder", blocker.display()),
+        )),
+        None => Ok(()),
+    }
+}
+
+/// A fit rendered at the image's full size and judged there.
+pub struct Judged {
+    /// The fitted material under the fitted (or given) light, at the image's size.
+    pub render: Image,
+    /// Its PSNR against the image over the mask (see [`psnr`]).
+    pub psnr: f64,
+}
+
+/// Renders `fitted` on `inputs`' normals with `camera`, and its PSNR.
+pub fn judge(
+    renderer: &Renderer,
+    inputs: &Inputs,
+    fitted: &Fitted,
+    camera: Camera,
+) -> Result<Judged> {
+    let render = render_one(renderer, inputs, &fitted.material, &fitted.env, camera)?;
+    let psnr = psnr(&render, &inputs.target, &inputs.mask);
+    Ok(Judged { render, psnr })
+}
+
+/// Writes the fit folder of `fitted` on `inputs` (see [`write()`]): normals and image kept
+/// on the mask, 0 elsewhere.
+pub fn write_fit(
+    dir: &Path,
+    inputs: &Inputs,
+    fitted: &Fitted,
+    judged: &Judged,
+    report: &Report,
+) -> Result<Vec<PathBuf>> {
+    let masked = |v: &[[f32; 3]]| -> Vec<[f32; 3]> {
+        v.iter()
+            .zip(&inputs.mask)
+            .map(|(p, &m)| if m { *p } else { [0.0; 3] })
+            .collect()
+    };
+    let normals = NormalMap {
+        normals: masked(&inputs.normals.normals),
+        ..inputs.normals.clone()
+    };
+    let target = Image {
+        pixels: masked(&inputs.target.pixels),
+        ..inputs.target.clone()
+    };
+    write(
+        dir,
+        &Output {
+            material: &fitted.material,
+            env: &fitted.env,
+            normals: &normals,
+            target: &target,
+            render: &judged.render,
+            losses: &fitted.losses,
+            report,
+        },
+    )
 }
 
 /// Writes a fit folder (created if missing): every file or, on failure, none.
@@ -162,7 +235,7 @@ fn side_by_side(images: &[&Image], preview: &Preview) -> Result<Vec<u8>> {
     io::png::encode_rgb8(total, h, &rgb)
 }
 
-/// Reads a fit folder written by [`write`].
+/// Reads a fit folder written by [`write()`].
 pub fn read(dir: &Path) -> Result<FitDir> {
     if !dir.is_dir() {
         return Err(Error::file(
@@ -213,107 +286,14 @@ pub fn read(dir: &Path) -> Result<FitDir> {
     })
 }
 
-/// `shape_light`'s normals, light and camera with `material`.
-pub fn transfer(renderer: &Renderer, shape_light: &FitDir, material: &Material) -> Result<Image> {
-    let batch = Batch::single(Scene {
-        normals: shape_light.normals.clone(),
-        env: shape_light.env.clone(),
-        material: material.clone(),
-        camera: shape_light.camera,
-    })?;
-    Ok(renderer.render(&batch)?.remove(0))
-}
-
-/// Box-resamples `image` to `width` x `height`: each output pixel is the mean of the
-/// input pixels whose centres fall in it (the nearest one when none does).
-pub fn resize(image: &Image, width: usize, height: usize) -> Image {
-    let mut out = Image::zeros(width, height);
-    let (sx, sy) = (
-        image.width as f64 / width as f64,
-        image.height as f64 / height as f64,
-    );
-    for y in 0..height {
-        let (y0, y1) = (y as f64 * sy, (y + 1) as f64 * sy);
-        let rows =
-            (y0 - 0.5).ceil().max(0.0) as usize..((y1 - 0.5).ceil() as usize).min(image.height);
-        for x in 0..width {
-            let (x0, x1) = (x as f64 * sx, (x + 1) as f64 * sx);
-            let cols =
-                (x0 - 0.5).ceil().max(0.0) as usize..((x1 - 0.5).ceil() as usize).min(image.width);
-            let (mut sum, mut n) = ([0.0f64; 3], 0usize);
-            for yy in rows.clone() {
-                for xx in cols.clone() {
-                    for k in 0..3 {
-                        sum[k] += f64::from(image.pixels[yy * image.width + xx][k]);
-                    }
-                    n += 1;
-                }
-            }
-            out.pixels[y * width + x] = if n > 0 {
-                sum.map(|v| (v / n as f64) as f32)
-            } else {
-                let yy = (((y as f64 + 0.5) * sy) as usize).min(image.height - 1);
-                let xx = (((x as f64 + 0.5) * sx) as usize).min(image.width - 1);
-                image.pixels[yy * image.width + xx]
-            };
-        }
-    }
-    out
-}
-
-/// Gap between grid cells, in pixels.
-const GAP: usize = 4;
-
-/// The grid of transfers as an 8-bit RGB picture: row i keeps fit i's shape and light,
-/// column j brings fit j's material, and the diagonal shows the images fitted to. Cells
-/// are `cell` pixels square (each image resampled), on a dark background.
-pub fn grid(
-    renderer: &Renderer,
-    fits: &[FitDir],
-    cell: usize,
-    preview: &Preview,
-) -> Result<(usize, usize, Vec<u8>)> {
-    let n = fits.len();
-    let side = n * cell + (n + 1) * GAP;
-    let mut rgb = vec![24u8; side * side * 3];
-    for (i, a) in fits.iter().enumerate() {
-        for (j, b) in fits.iter().enumerate() {
-            let image = if i == j {
-                a.target.clone()
-            } else {
-                transfer(renderer, a, &b.material)?
-            };
-            let small = resize(&image, cell, cell);
-            let (ox, oy) = (GAP + j * (cell + GAP), GAP + i * (cell + GAP));
-            for y in 0..cell {
-                for x in 0..cell {
-                    let p = small.pixels[y * cell + x];
-                    let o = ((oy + y) * side + ox + x) * 3;
-                    for k in 0..3 {
-                        rgb[o + k] = io::png::display_value(p[k], preview);
-                    }
-                }
-            }
-        }
-    }
-    Ok((side, side, rgb))
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn resize_averages_blocks_and_keeps_sizes() {
-        let img = Image {
-            width: 4,
-            height: 2,
-            pixels: (0..8).map(|i| [i as f32, 0.0, 1.0]).collect(),
-        };
-        let half = resize(&img, 2, 1);
-        assert_eq!(half.pixels, vec![[2.5, 0.0, 1.0], [4.5, 0.0, 1.0]]);
-        let up = resize(&img, 8, 4);
-        assert_eq!(up.pixels[0], [0.0, 0.0, 1.0]);
-        assert_eq!(up.pixels[8 * 4 - 1], [7.0, 0.0, 1.0]);
+/// The material of a fit folder, or of a material file.
+pub fn read_material(path: &Path) -> Result<Material> {
+    if path.is_dir() {
+        Ok(read(path)?.material)
+    } else {
+        io::load_material(path)
     }
 }
+
+/// Gap between images side by side and between grid cells, in pixels.
+pub(super) const GAP: usize = 4;

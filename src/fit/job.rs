@@ -6,14 +6,12 @@
 use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
-use serde::{Deserialize, Serialize};
 
 use super::{Fitted, Options, fit};
 use crate::brdf::{Isotropic, merl, nbrdf};
 use crate::error::{Error, Result};
 use crate::io;
-use crate::io::json::material_from_ctrl;
-use crate::material::Material;
+pub use crate::presets::{BUNDLE_FORMAT, Bundle, BundleEntry};
 
 /// Where the BRDFs come from.
 #[derive(Clone, Debug)]
@@ -130,94 +128,90 @@ fn psnr(ratio: f64) -> f64 {
     -20.0 * ratio.log10()
 }
 
-/// The bundle file: every fit of a run, as the presets ship them.
-#[derive(Clone, Debug, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Bundle {
-    /// Always [`BUNDLE_FORMAT`].
-    pub format: String,
-    /// What the fits were made from, for the record.
-    pub source: String,
-    /// One entry per material, in name order.
-    pub materials: Vec<BundleEntry>,
+/// The bundle of `fits` made from `source`.
+pub fn bundle(source: &str, fits: &[Fitted]) -> Bundle {
+    let mut materials: Vec<BundleEntry> = fits
+        .iter()
+        .map(|f| BundleEntry {
+            name: f.best().material.name.clone(),
+            lobes: f.best().lobes,
+            brdf_error: f.fits.iter().map(|f| f.error).collect(),
+            image_error: f
+                .fits
+                .iter()
+                .map(|f| f.image_error)
+                .filter(|e| !e.is_nan())
+                .collect(),
+            ctrl: f.best().material.ctrl.to_vec(),
+        })
+        .collect();
+    materials.sort_by(|a, b| a.name.cmp(&b.name));
+    Bundle {
+        format: BUNDLE_FORMAT.into(),
+        source: source.into(),
+        materials,
+    }
 }
 
-/// One material of a [`Bundle`].
-#[derive(Clone, Debug, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct BundleEntry {
-    /// The material's name.
-    pub name: String,
-    /// Lobes kept.
-    pub lobes: usize,
-    /// The BRDF error of the fit with 1, 2, 3 lobes (those tried).
-    pub brdf_error: Vec<f64>,
-    /// The judge's image error (RMSE over peak) of each, if judged.
-    #[serde(default, skip_serializing_if = "Vec::is_empty")]
-    pub image_error: Vec<f64>,
-    /// The 108 control points.
-    pub ctrl: Vec<f64>,
+/// Where `matedit fit-brdf` writes: `output` is one material's file when it ends in
+/// `.json`, else a folder of NAME.json files; `bundle` is one file with every fit.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Outputs<'a> {
+    /// A material file or a folder.
+    pub output: Option<&'a Path>,
+    /// A bundle file.
+    pub bundle: Option<&'a Path>,
 }
 
-/// The bundle format's name.
-pub const BUNDLE_FORMAT: &str = "matedit-fits-1";
+impl Outputs<'_> {
+    /// `output`, if it is one material's file.
+    pub fn file(&self) -> Option<&Path> {
+        self.output.filter(|o| {
+            o.extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("json"))
+        })
+    }
 
-impl Bundle {
-    /// The bundle of `fits` made from `source`.
-    pub fn new(source: &str, fits: &[Fitted]) -> Self {
-        let mut materials: Vec<BundleEntry> = fits
-            .iter()
-            .map(|f| BundleEntry {
-                name: f.best().material.name.clone(),
-                lobes: f.best().lobes,
-                brdf_error: f.fits.iter().map(|f| f.error).collect(),
-                image_error: f
-                    .fits
-                    .iter()
-                    .map(|f| f.image_error)
-                    .filter(|e| !e.is_nan())
-                    .collect(),
-                ctrl: f.best().material.ctrl.to_vec(),
-            })
-            .collect();
-        materials.sort_by(|a, b| a.name.cmp(&b.name));
-        Bundle {
-            format: BUNDLE_FORMAT.into(),
-            source: source.into(),
-            materials,
+    /// Checked before anything is read: the bundle's folder exists.
+    pub fn check_bundle(&self) -> Result<()> {
+        match self.bundle {
+            Some(b) => io::check_parent(b),
+            None => Ok(()),
         }
     }
 
-    /// Parses a bundle's text; the error names the item.
-    pub fn parse(text: &str) -> std::result::Result<Self, String> {
-        let b: Bundle =
-            serde_json::from_str(text).map_err(|e| format!("not a fits bundle: {e}"))?;
-        if b.format != BUNDLE_FORMAT {
-            return Err(format!(
-                "format is '{}'; expected '{BUNDLE_FORMAT}'",
-                b.format
-            ));
+    /// Checked before minutes of fitting `count` materials from `source`: a material file
+    /// takes one, in a folder that exists.
+    pub fn check_file(&self, source: &str, count: usize) -> Result<()> {
+        let Some(o) = self.file() else {
+            return Ok(());
+        };
+        if count > 1 {
+            return Err(Error::Invalid(format!(
+                "-o {}: {source} holds {count} materials; give a folder for one NAME.json each, or pick one with --name",
+                o.display(),
+            )));
         }
-        for m in &b.materials {
-            material_from_ctrl(m.name.clone(), &m.ctrl)
-                .map_err(|e| format!("material '{}': {e}", m.name))?;
-        }
-        Ok(b)
+        io::check_parent(o)
     }
 
-    /// The materials.
-    pub fn materials(&self) -> Vec<Material> {
-        self.materials
-            .iter()
-            .map(|m| Material::new(m.name.clone(), &m.ctrl).expect("checked by parse"))
-            .collect()
-    }
-
-    /// Pretty JSON, one number a line.
-    pub fn encode(&self) -> Vec<u8> {
-        let mut out = serde_json::to_vec_pretty(self).unwrap_or_default();
-        out.push(b'\n');
-        out
+    /// Writes the fits made from `source`: the material file and the bundle together (both
+    /// or neither), then the folder; the paths written.
+    pub fn write(&self, fits: &[Fitted], source: &str) -> Result<Vec<PathBuf>> {
+        let mut staged = Vec::new();
+        if let (Some(o), Some(f)) = (self.file(), fits.first()) {
+            let bytes =
+                io::json::encode_material(&f.best().material, Some(&description(f, source)));
+            staged.push(io::stage(o, &bytes)?);
+        }
+        if let Some(b) = self.bundle {
+            staged.push(io::stage(b, &bundle(source, fits).encode())?);
+        }
+        let mut written = io::commit_all(staged)?;
+        if let (Some(dir), None) = (self.output, self.file()) {
+            written.extend(write_folder(dir, fits, source)?);
+        }
+        Ok(written)
     }
 }
 

@@ -35,26 +35,7 @@ use pipelines::Pipeline;
 use pixels::Source;
 use submission::LastRun;
 
-/// The GPU time of one pass in the last call, from timestamps written at the start and end
-/// of each of its compute passes.
-#[derive(Clone, Debug, PartialEq)]
-pub struct PassTiming {
-    /// The pass (the shader's name).
-    pub pass: &'static str,
-    /// Seconds, summed over its compute passes.
-    pub seconds: f64,
-    /// Pixel-texel pairs it covered (0 for the reductions).
-    pub pairs: u64,
-    /// Its compute passes (one per scene and range).
-    pub compute_passes: usize,
-}
-
-impl PassTiming {
-    /// Pairs per second; `None` for a reduction.
-    pub fn pairs_per_second(&self) -> Option<f64> {
-        (self.pairs > 0 && self.seconds > 0.0).then(|| self.pairs as f64 / self.seconds)
-    }
-}
+pub use crate::backend::PassTiming;
 
 /// The layer on a wgpu device, pipelines built once, buffers and bind groups kept
 /// between calls (grown to the largest call's; calls on one renderer take turns).

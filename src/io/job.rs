@@ -10,6 +10,7 @@ use std::path::{Path, PathBuf};
 
 use super::manifest::Manifest;
 use super::resample::{self, EnvSize};
+use super::source::{MAX_IMAGE_SIDE, MaterialSource, NormalsSource};
 use crate::camera::Camera;
 use crate::envmap::{Convention, DEFAULT_ENV_SIZE, EnvMap};
 use crate::error::{Error, Result};
@@ -18,27 +19,6 @@ use crate::scene::{Batch, Image, NormalMap, Scene};
 
 /// Side of the default sphere image.
 pub const DEFAULT_SPHERE: usize = 256;
-
-/// Largest image side accepted for a generated sphere.
-pub const MAX_IMAGE_SIDE: usize = 8192;
-
-/// Where a scene's normals come from.
-#[derive(Clone, Debug, PartialEq)]
-pub enum NormalsSource {
-    /// A normal-map file (EXR, NPY or PNG).
-    File(PathBuf),
-    /// A unit sphere filling an N x N image.
-    Sphere(usize),
-}
-
-/// Where a scene's material comes from.
-#[derive(Clone, Debug, PartialEq)]
-pub enum MaterialSource {
-    /// A material JSON file.
-    File(PathBuf),
-    /// A built-in preset by name.
-    Preset(String),
-}
 
 /// Scene options as the command line gives them; `None` means "not given".
 #[derive(Clone, Debug, Default, PartialEq)]

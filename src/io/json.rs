@@ -10,8 +10,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
-use crate::material::{MAX_ABS_SCALE, MAX_EXPONENT, Material, N_PARAMS};
-use crate::spline::N_CTRL_POINTS;
+use crate::material::{Material, N_PARAMS};
 
 /// A material file as written on disk.
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -34,51 +33,8 @@ pub struct GradientFile {
     pub ctrl: Vec<f32>,
 }
 
-/// Describes flat index `i`: `ctrl[7] (channel R, lobe 0, exponent m1, point 1)`.
-pub fn describe_index(i: usize) -> String {
-    let j = i % N_CTRL_POINTS;
-    let t = (i / N_CTRL_POINTS) % 2;
-    let s = (i / (N_CTRL_POINTS * 2)) % 3;
-    let k = i / (N_CTRL_POINTS * 6);
-    let channel = ["R", "G", "B"].get(k).copied().unwrap_or("?");
-    let coef = if t == 0 { "scale m0" } else { "exponent m1" };
-    format!("ctrl[{i}] (channel {channel}, lobe {s}, {coef}, point {j})")
-}
-
-/// Checks 108 control points and builds the material; the error message names the item
-/// (without the file name).
-pub fn material_from_ctrl(name: String, ctrl: &[f64]) -> std::result::Result<Material, String> {
-    if ctrl.len() != N_PARAMS {
-        return Err(format!(
-            "'ctrl' has {} numbers; a material has exactly {N_PARAMS} (3 channels x 3 lobes x \
-             2 coefficients x 6 control points, index ((k*3 + s)*2 + t)*6 + j)",
-            ctrl.len()
-        ));
-    }
-    for (i, &v) in ctrl.iter().enumerate() {
-        let is_exponent = (i / N_CTRL_POINTS) % 2 == 1;
-        let why = if !v.is_finite() {
-            Some("is not a finite number".to_string())
-        } else if is_exponent && v < 0.0 {
-            Some(format!("is {v}; exponents must be >= 0"))
-        } else if is_exponent && v > MAX_EXPONENT {
-            Some(format!("is {v}; exponents must be <= {MAX_EXPONENT}"))
-        } else if !is_exponent && v.abs() > MAX_ABS_SCALE {
-            Some(format!("is {v}; scales must be within +-{MAX_ABS_SCALE}"))
-        } else {
-            None
-        };
-        if let Some(why) = why {
-            return Err(format!("{} {why}", describe_index(i)));
-        }
-    }
-    Material::new(name, ctrl).map_err(|e| {
-        let m = e.to_string();
-        m.strip_prefix("material: ")
-            .map(str::to_string)
-            .unwrap_or(m)
-    })
-}
+/// Where the control points are checked; here for the material files' readers.
+pub use crate::material::{describe_index, material_from_ctrl};
 
 /// Parses JSON text into `T`; the error names where in the document it is (`scenes[2].
 /// material: invalid type: ...`) as well as serde_json's line and column.

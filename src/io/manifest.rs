@@ -26,8 +26,8 @@ use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
 
-use super::job::{MAX_IMAGE_SIDE, MaterialSource, NormalsSource};
 use super::resample::EnvSize;
+use super::source::{MAX_IMAGE_SIDE, MaterialSource, NormalsSource};
 use crate::camera::Camera;
 use crate::envmap::Convention;
 use crate::error::{Error, Result};

@@ -7,6 +7,12 @@
 //! nothing here panics on user input. Outputs are written to a temporary file in the
 //! destination folder and renamed into place, so a failed run leaves no partial file.
 //! docs/FORMATS.md describes every format.
+//!
+//! Files: the formats ([`exr`], [`npy`], [`png`], [`json`]) and [`resample`] (env map
+//! sizes) beneath the loaders here; [`info`] (what a file holds); scenes in: [`source`]
+//! (where normals and materials come from), [`manifest`] (batch files) and [`job`] (options
+//! to a loaded batch); results out: [`outputs`] (images and gradient folders) on [`write`](mod@write)
+//! (checks before work, atomic writes).
 
 pub mod exr;
 pub mod info;
@@ -14,10 +20,13 @@ pub mod job;
 pub mod json;
 pub mod manifest;
 pub mod npy;
+pub mod outputs;
 pub mod png;
 pub mod resample;
+pub mod source;
+pub mod write;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use crate::envmap::{Convention, EnvMap, MAX_RADIANCE};
 use crate::error::{Error, Result};
@@ -26,6 +35,10 @@ use crate::scene::{BACKGROUND_EPS, Image, NormalMap};
 
 pub use png::{Preview, Tonemap};
 pub use resample::EnvSize;
+pub use write::{
+    Staged, check_output, check_parent, commit_all, create_dirs, encode_image, remove_created,
+    stage, write_atomic,
+};
 
 /// A 3-channel float raster as read from a file, row-major, row 0 at the top, kept in f64
 /// so that checks see the file's values.
@@ -385,140 +398,4 @@ fn to_f32(path: &Path, r: &Raster, at: impl Fn(usize, usize) -> String) -> Resul
 pub fn load_material(path: &Path) -> Result<Material> {
     format_of(path, "a material", &[Format::Json])?;
     json::read_material(path)
-}
-
-/// Checks before any work is done that an output can be written to `path`: a known
-/// extension among `allowed` and an existing folder to put it in.
-pub fn check_output(path: &Path, allowed: &[Format]) -> Result<Format> {
-    let format = format_of(path, "the output", allowed)?;
-    if path.is_dir() {
-        return Err(Error::file(path, "is a folder; give a file name"));
-    }
-    check_parent(path)?;
-    Ok(format)
-}
-
-/// Checks that the folder that will hold `path` exists.
-pub fn check_parent(path: &Path) -> Result<()> {
-    let parent = parent_dir(path);
-    if !parent.is_dir() {
-        return Err(Error::file(
-            path,
-            format!("folder {} does not exist", parent.display()),
-        ));
-    }
-    Ok(())
-}
-
-fn parent_dir(path: &Path) -> &Path {
-    match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    }
-}
-
-/// Encodes a rendered image for `path` by its extension: `.exr` (linear float32 RGB),
-/// `.npy` (float32, H x W x 3) or `.png` (8-bit sRGB preview under `preview`).
-pub fn encode_image(path: &Path, image: &Image, preview: &Preview) -> Result<Vec<u8>> {
-    match format_of(path, "the output", &[Format::Exr, Format::Npy, Format::Png])? {
-        Format::Exr => exr::encode_rgb(image.width, image.height, &image.pixels),
-        Format::Npy => Ok(npy::encode_rgb(image.width, image.height, &image.pixels)),
-        _ => png::encode_preview(image, preview),
-    }
-}
-
-/// Bytes written to a temporary file beside their destination, not yet in place.
-#[derive(Debug)]
-pub struct Staged {
-    file: tempfile::NamedTempFile,
-    path: PathBuf,
-}
-
-impl Staged {
-    /// Moves the file into place (an atomic rename on the same file system).
-    pub fn commit(self) -> Result<PathBuf> {
-        let path = self.path;
-        self.file
-            .persist(&path)
-            .map_err(|e| Error::file(&path, format!("cannot write: {}", e.error)))?;
-        Ok(path)
-    }
-
-    /// The destination.
-    pub fn path(&self) -> &Path {
-        &self.path
-    }
-}
-
-/// Writes `bytes` to a temporary file `.NAME.XXXX.tmp` in `path`'s folder (NAME: the
-/// destination's file name, so that what a killed run left can be found);
-/// [`Staged::commit`] puts it in place. Dropping the [`Staged`] removes the temporary file.
-pub fn stage(path: &Path, bytes: &[u8]) -> Result<Staged> {
-    use std::io::Write;
-    let dir = parent_dir(path);
-    let fail = |e: std::io::Error| Error::file(path, format!("cannot write: {e}"));
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy())
-        .unwrap_or_default();
-    let prefix = format!(".{name}.");
-    let mut builder = tempfile::Builder::new();
-    builder.prefix(&prefix).suffix(".tmp");
-    #[cfg(unix)]
-    {
-        // temporary files are private (0600); an output is an ordinary file: 0666 less
-        // the user's umask, applied by the system when the file is created
-        use std::os::unix::fs::PermissionsExt;
-        builder.permissions(std::fs::Permissions::from_mode(0o666));
-    }
-    let mut file = builder.tempfile_in(dir).map_err(fail)?;
-    file.write_all(bytes).map_err(fail)?;
-    file.as_file().sync_all().map_err(fail)?;
-    Ok(Staged {
-        file,
-        path: path.to_path_buf(),
-    })
-}
-
-/// Writes `bytes` to `path` atomically: all of it or, on failure, nothing.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    stage(path, bytes)?.commit().map(|_| ())
-}
-
-/// Creates `dir` and its missing parents; returns the folders it created, outermost
-/// first, so that a failed run can take them back with [`remove_created`].
-pub fn create_dirs(dir: &Path) -> Result<Vec<PathBuf>> {
-    let missing: Vec<PathBuf> = dir
-        .ancestors()
-        .take_while(|p| !p.as_os_str().is_empty() && !p.exists())
-        .map(Path::to_path_buf)
-        .collect();
-    std::fs::create_dir_all(dir)
-        .map_err(|e| Error::file(dir, format!("cannot create the folder: {e}")))?;
-    Ok(missing.into_iter().rev().collect())
-}
-
-/// Removes folders made by [`create_dirs`], innermost first, where they are still empty.
-pub fn remove_created(dirs: &[PathBuf]) {
-    for d in dirs.iter().rev() {
-        let _ = std::fs::remove_dir(d);
-    }
-}
-
-/// Puts staged files in place. On a failure, removes those already put in place by this
-/// call, so that a batch is written whole or not at all (as far as the file system allows).
-pub fn commit_all(staged: Vec<Staged>) -> Result<Vec<PathBuf>> {
-    let mut done = Vec::new();
-    for s in staged {
-        match s.commit() {
-            Ok(p) => done.push(p),
-            Err(e) => {
-                for p in &done {
-                    let _ = std::fs::remove_file(p);
-                }
-                return Err(e);
-            }
-        }
-    }
-    Ok(done)
 }

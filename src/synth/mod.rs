@@ -12,7 +12,17 @@
 //!
 //! docs/synth.md describes the spec, the files and how to run shards on Slurm, Kubernetes
 //! and Ray.
+//!
+//! Files: [`spec`] (the spec and its top-level keys) on [`sources`] (its source lists) on
+//! `files.rs` (the files and folders it names); [`draw`] (sample k); [`tar`] (a chunk's
+//! bytes); `chunk.rs` (a chunk's file, its record, the check that skips it); [`shard`];
+//! this file (the engine, running a shard, verifying, the manifest).
 
+mod chunk;
+pub mod draw;
+mod files;
+pub mod shard;
+pub mod sources;
 pub mod spec;
 pub mod tar;
 
@@ -20,67 +30,20 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use rayon::prelude::*;
-use serde::{Deserialize, Serialize};
-use sha2::{Digest, Sha256};
+use serde::Serialize;
 
 use crate::error::{Error, Result};
 use crate::scene::Batch;
 use crate::{Device, Renderer};
 
-pub use spec::{Sample, Spec};
+pub use chunk::{ChunkRecord, chunk_file};
+use chunk::{check_chunk, record_file, remove_leftovers, sha256_hex, write_atomic};
+pub use draw::Sample;
+pub use shard::Shard;
+pub use spec::Spec;
 
 /// The `format` of `manifest.json` and of the chunk records.
 pub const FORMAT: &str = "matedit-synth 1";
-
-/// A part of the work: chunks `c` with `c mod count == index`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Shard {
-    /// This part, from 0.
-    pub index: u64,
-    /// How many parts.
-    pub count: u64,
-}
-
-impl Shard {
-    /// The whole dataset.
-    pub const WHOLE: Shard = Shard { index: 0, count: 1 };
-
-    /// A checked shard.
-    pub fn new(index: u64, count: u64) -> std::result::Result<Shard, String> {
-        if count == 0 {
-            return Err(format!("shard {index}/{count}: N must be at least 1"));
-        }
-        if index >= count {
-            return Err(format!(
-                "shard {index}/{count}: I must be below N (shards are numbered 0 to {})",
-                count - 1
-            ));
-        }
-        Ok(Shard { index, count })
-    }
-
-    /// The chunks of this shard among `chunks`.
-    pub fn chunks(&self, chunks: u64) -> impl Iterator<Item = u64> + use<> {
-        (self.index..chunks).step_by(self.count as usize)
-    }
-}
-
-impl std::str::FromStr for Shard {
-    type Err = String;
-    fn from_str(s: &str) -> std::result::Result<Self, String> {
-        let bad = || format!("shard '{s}' is not I/N (e.g. 0/4)");
-        let (i, n) = s.split_once('/').ok_or_else(bad)?;
-        let i: u64 = i.trim().parse().map_err(|_| bad())?;
-        let n: u64 = n.trim().parse().map_err(|_| bad())?;
-        Shard::new(i, n)
-    }
-}
-
-impl std::fmt::Display for Shard {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "{}/{}", self.index, self.count)
-    }
-}
 
 /// A renderer and the name of what it computes: samples record it, and a chunk made by
 /// another renderer is not taken as done.
@@ -156,101 +119,6 @@ impl Summary {
             self.samples as f64 / self.seconds
         } else {
             0.0
-        }
-    }
-}
-
-/// What a chunk's record (`chunk-NNNNNN.json`) says.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ChunkRecord {
-    /// [`FORMAT`].
-    pub format: String,
-    /// The tar file's name.
-    pub file: String,
-    /// The chunk's index.
-    pub chunk: u64,
-    /// Its first sample.
-    pub first: u64,
-    /// Its samples.
-    pub count: u64,
-    /// The tar file's size.
-    pub bytes: u64,
-    /// The tar file's SHA-256, hex.
-    pub sha256: String,
-    /// The spec's digest ([`Spec::digest`]).
-    pub spec_sha256: String,
-    /// The renderer's label ([`Engine::label`]).
-    pub renderer: String,
-}
-
-/// The tar file of chunk `c`.
-pub fn chunk_file(spec: &Spec, c: u64) -> String {
-    let width = spec.chunks().saturating_sub(1).to_string().len().max(6);
-    format!("chunk-{c:0width$}.tar")
-}
-
-fn record_file(tar_name: &str) -> String {
-    format!("{}.json", tar_name.trim_end_matches(".tar"))
-}
-
-fn sha256_hex(bytes: &[u8]) -> String {
-    spec::hex(&Sha256::digest(bytes))
-}
-
-/// The record of chunk `c` in `dir` if it belongs to this spec and renderer, and with
-/// `hash` its tar's size and checksum match it.
-fn check_chunk(spec: &Spec, dir: &Path, c: u64, renderer: &str, hash: bool) -> Option<ChunkRecord> {
-    let name = chunk_file(spec, c);
-    let rec_bytes = std::fs::read(dir.join(record_file(&name))).ok()?;
-    let rec: ChunkRecord = serde_json::from_slice(&rec_bytes).ok()?;
-    let expected = (
-        FORMAT,
-        name.as_str(),
-        c,
-        c * spec.chunk_size,
-        spec.chunk_size,
-        spec.digest.as_str(),
-        renderer,
-    );
-    let got = (
-        rec.format.as_str(),
-        rec.file.as_str(),
-        rec.chunk,
-        rec.first,
-        rec.count,
-        rec.spec_sha256.as_str(),
-        rec.renderer.as_str(),
-    );
-    if expected != got {
-        return None;
-    }
-    let path = dir.join(&name);
-    if hash {
-        let bytes = std::fs::read(&path).ok()?;
-        (bytes.len() as u64 == rec.bytes && sha256_hex(&bytes) == rec.sha256).then_some(rec)
-    } else {
-        let meta = std::fs::metadata(&path).ok()?;
-        (meta.is_file() && meta.len() == rec.bytes).then_some(rec)
-    }
-}
-
-/// Writes `bytes` to `dir/name` atomically, through a temporary file `.name.XXXX.tmp`
-/// ([`crate::io::stage`]) and a rename.
-fn write_atomic(dir: &Path, name: &str, bytes: &[u8]) -> Result<()> {
-    crate::io::write_atomic(&dir.join(name), bytes)
-}
-
-/// Removes what a killed run left of chunk file `name`: its temporary files.
-fn remove_leftovers(dir: &Path, name: &str) {
-    let prefix = format!(".{name}.");
-    if let Ok(entries) = std::fs::read_dir(dir) {
-        for e in entries.flatten() {
-            let n = e.file_name();
-            let n = n.to_string_lossy();
-            if n.starts_with(&prefix) && n.ends_with(".tmp") {
-                let _ = std::fs::remove_file(e.path());
-            }
         }
     }
 }

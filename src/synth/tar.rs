@@ -6,7 +6,7 @@
 use crate::error::{Error, Result};
 use crate::scene::Image;
 
-use super::spec::Sample;
+use super::draw::Sample;
 
 /// The members of a sample, by suffix, in the order they are written.
 pub const MEMBERS: [&str; 5] = [

@@ -1,0 +1,67 @@
+//! `matedit render`: an image, or a manifest's batch of images, to EXR, NPY or PNG.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use matedit::io;
+
+use super::shared::{
+    Failure, PreviewArgs, SceneArgs, check_method, print_timings, renderer, report, runtime,
+    with_progress,
+};
+
+/// Shown after the options by `matedit help render`.
+pub const EXAMPLES: &str = "\
+Examples:
+  matedit render -o sphere.png
+  matedit render -o gold.exr --preset gold --env studio.exr --env-size 128x256
+  matedit render -o face.npy --normals face_normals.png --material mat.json --fov 40
+  matedit render --batch scenes.json -o renders/
+
+Outputs by extension: .exr (linear float32 RGB), .npy (float32, H x W x 3),
+.png (8-bit sRGB preview: value * 2^exposure, then the tonemap, clamped to [0, 1],
+then sRGB-encoded). See docs/FORMATS.md for every file format and the manifest.";
+
+/// The options of `matedit render`.
+#[derive(clap::Args)]
+pub struct Args {
+    /// Output image (.exr, .npy or .png); with --batch, the folder that relative outputs go to.
+    #[arg(short, long, value_name = "OUT", required_unless_present = "batch")]
+    output: Option<PathBuf>,
+    #[command(flatten)]
+    scene: SceneArgs,
+    #[command(flatten)]
+    preview: PreviewArgs,
+}
+
+/// Runs `matedit render`.
+pub fn run(args: &Args) -> Result<(), Failure> {
+    let plan = args.scene.plan(args.output.as_deref(), None)?;
+    io::outputs::check_images(&plan)?;
+    let loaded = plan.load()?;
+    for n in &loaded.notes {
+        eprintln!("matedit: {n}");
+    }
+    let accuracy = args.scene.accuracy();
+    check_method(&accuracy, &loaded.batch)?;
+    let renderer = renderer(args.scene.device, args.scene.threads)?;
+    let start = Instant::now();
+    let (images, choices) = with_progress("rendering", || {
+        renderer.render_with(&loaded.batch, &accuracy)
+    })?;
+    if args.scene.timings {
+        print_timings(&renderer, start.elapsed());
+    }
+    report(&accuracy, &choices);
+    let written =
+        io::outputs::write_images(&plan, &images, &args.preview.preview()).map_err(runtime)?;
+    for (p, image) in written.iter().zip(&images) {
+        eprintln!(
+            "matedit: wrote {} ({}x{})",
+            p.display(),
+            image.width,
+            image.height
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,223 @@
+//! The pure function from (spec, sample index) to a sample: every draw from the sample's
+//! own generator, so that sample k depends on the spec, its seed and k alone.
+
+use serde_json::{Value, json};
+
+use super::sources::{MaterialSource, NormalsSource, Weighted};
+use super::spec::Spec;
+use crate::camera::Camera;
+use crate::envmap::EnvMap;
+use crate::error::{Error, Result};
+use crate::material::{Material, N_PARAMS};
+use crate::scene::{NormalMap, Scene};
+use crate::splitmix::SplitMix;
+
+/// A sample's inputs and the parameters that made it.
+#[derive(Clone, Debug)]
+pub struct Sample {
+    /// Its index in the dataset.
+    pub index: u64,
+    /// What is rendered.
+    pub scene: Scene,
+    /// The draws: sources, rotation, mixing weights, seed and index (JSON).
+    pub params: Value,
+}
+
+impl SplitMix {
+    /// The generator of sample `k` under `seed`: independent of every other sample's.
+    pub fn for_sample(seed: u64, k: u64) -> Self {
+        let a = SplitMix(seed).next_u64();
+        let b = SplitMix(k ^ 0x5851_f42d_4c95_7f2d).next_u64();
+        SplitMix(a ^ b.rotate_left(17))
+    }
+}
+
+impl Spec {
+    /// Sample `k`'s scene and the parameters that made it: a pure function of the spec,
+    /// its seed and `k`.
+    pub fn sample(&self, k: u64) -> Result<Sample> {
+        if k >= self.count {
+            return Err(Error::Invalid(format!(
+                "sample {k}: the spec has {} samples",
+                self.count
+            )));
+        }
+        let mut rng = SplitMix::for_sample(self.seed, k);
+        let (w, h) = self.image_size;
+
+        let ni = pick(&mut rng, &self.normals);
+        let (normals, nparams) = match &self.normals[ni].source {
+            NormalsSource::Sphere(m) => (m.clone(), json!({ "sphere": w })),
+            NormalsSource::Bumpy => {
+                let seed = rng.next_u64();
+                (
+                    NormalMap::bumpy(w, h, seed),
+                    json!({ "bumpy": [h, w], "bumpy_seed": seed }),
+                )
+            }
+            NormalsSource::Files(maps) => {
+                let (label, m) = &maps[rng.below(maps.len())];
+                (m.clone(), json!({ "file": label }))
+            }
+        };
+
+        let ei = pick(&mut rng, &self.envs);
+        let src = &self.envs[ei].source;
+        let (label, map) = &src.maps[rng.below(src.maps.len())];
+        let shift = if src.rotate { rng.below(map.width) } else { 0 };
+        let env = rotate(map, shift);
+        let eparams = json!({
+            "file": label,
+            "rotate_columns": shift,
+            "rotate_degrees": shift as f64 * 360.0 / map.width as f64,
+        });
+
+        let mi = pick(&mut rng, &self.materials);
+        let (material, mparams) = match &self.materials[mi].source {
+            MaterialSource::Fixed(m, p) => (Material::clone(m), p.clone()),
+            MaterialSource::RandomMerl { mix } => random_merl(&mut rng, *mix)?,
+        };
+
+        let params = json!({
+            "index": k,
+            "seed": self.seed,
+            "normals": nparams,
+            "normals_item": ni,
+            "env": eparams,
+            "env_item": ei,
+            "material": mparams,
+            "material_item": mi,
+            "image_size": [h, w],
+            "env_size": [self.env_size.0, self.env_size.1],
+            "convention": self.convention.name(),
+            "fov": match self.camera {
+                Camera::Perspective { fov_y_deg } => json!(fov_y_deg),
+                Camera::Orthographic => Value::Null,
+            },
+        });
+        Ok(Sample {
+            index: k,
+            scene: Scene {
+                normals,
+                env,
+                material,
+                camera: self.camera,
+            },
+            params,
+        })
+    }
+}
+
+/// An item by weight.
+fn pick<T>(rng: &mut SplitMix, items: &[Weighted<T>]) -> usize {
+    if items.len() == 1 {
+        return 0;
+    }
+    let total: f64 = items.iter().map(|i| i.weight).sum();
+    let mut u = rng.uniform() * total;
+    for (i, item) in items.iter().enumerate() {
+        if u < item.weight {
+            return i;
+        }
+        u -= item.weight;
+    }
+    items.len() - 1
+}
+
+/// The map turned about the vertical axis: column c is the source's column (c + shift)
+/// mod width, exactly.
+pub fn rotate(env: &EnvMap, shift: usize) -> EnvMap {
+    let (h, w) = (env.height, env.width);
+    let mut texels = Vec::with_capacity(h * w);
+    for r in 0..h {
+        let row = &env.texels[r * w..(r + 1) * w];
+        texels.extend_from_slice(&row[shift % w..]);
+        texels.extend_from_slice(&row[..shift % w]);
+    }
+    EnvMap {
+        height: h,
+        width: w,
+        convention: env.convention,
+        texels,
+    }
+}
+
+/// `mix` distinct fitted MERL presets with weights uniform on the simplex (the gaps
+/// between sorted uniforms: arithmetic only, the same bits on every machine), mixed
+/// control point by control point.
+fn random_merl(rng: &mut SplitMix, mix: usize) -> Result<(Material, Value)> {
+    let merl = crate::presets::merl();
+    let mut order: Vec<usize> = (0..merl.len()).collect();
+    for i in 0..mix {
+        let j = i + rng.below(order.len() - i);
+        order.swap(i, j);
+    }
+    let mut cuts: Vec<f64> = (0..mix - 1).map(|_| rng.uniform()).collect();
+    cuts.sort_by(f64::total_cmp);
+    let mut weights = Vec::with_capacity(mix);
+    let mut prev = 0.0;
+    for &c in &cuts {
+        weights.push(c - prev);
+        prev = c;
+    }
+    weights.push(1.0 - prev);
+    let mut ctrl = [0.0f64; N_PARAMS];
+    let mut parts = Vec::with_capacity(mix);
+    for (&i, &wt) in order[..mix].iter().zip(&weights) {
+        let m = merl[i].material();
+        for (c, v) in ctrl.iter_mut().zip(m.ctrl) {
+            *c += wt * v;
+        }
+        parts.push(json!({ "preset": merl[i].name, "weight": wt }));
+    }
+    let material = Material::new("merl-mix", &ctrl)
+        .map_err(|e| Error::Invalid(format!("random merl material: {e}")))?;
+    Ok((material, json!({ "random": "merl", "mix": parts })))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::envmap::Convention;
+
+    #[test]
+    fn rotation_is_a_column_shift() {
+        let texels: Vec<[f32; 3]> = (0..2 * 4).map(|i| [i as f32; 3]).collect();
+        let env = EnvMap::new(2, 4, Convention::Equirect, texels).unwrap();
+        let r = rotate(&env, 1);
+        let col0: Vec<f32> = r.texels.iter().map(|t| t[0]).collect();
+        assert_eq!(col0, [1.0, 2.0, 3.0, 0.0, 5.0, 6.0, 7.0, 4.0]);
+        assert_eq!(rotate(&env, 0), env);
+    }
+
+    #[test]
+    fn draws_are_per_sample() {
+        let a: Vec<u64> = (0..4)
+            .map(|k| SplitMix::for_sample(7, k).next_u64())
+            .collect();
+        let b: Vec<u64> = (0..4)
+            .map(|k| SplitMix::for_sample(7, k).next_u64())
+            .collect();
+        assert_eq!(a, b);
+        assert_ne!(a[0], a[1]);
+        assert_ne!(
+            SplitMix::for_sample(7, 0).next_u64(),
+            SplitMix::for_sample(8, 0).next_u64()
+        );
+        let mut r = SplitMix(1);
+        assert!((0..1000).all(|_| r.below(5) < 5));
+    }
+
+    #[test]
+    fn merl_mixes_are_valid() {
+        let mut rng = SplitMix(3);
+        for mix in [1, 2, 3, 8] {
+            let (m, p) = random_merl(&mut rng, mix).unwrap();
+            m.validate().unwrap();
+            let parts = p["mix"].as_array().unwrap();
+            assert_eq!(parts.len(), mix);
+            let sum: f64 = parts.iter().map(|x| x["weight"].as_f64().unwrap()).sum();
+            assert!((sum - 1.0).abs() < 1e-12);
+        }
+    }
+}
