@@ -118,6 +118,23 @@ impl<'a> Selection<'a> {
         self.len
     }
 
+    /// What the records depend on: the source (its address and camera), the upstream
+    /// image's address and the count. Two selections of one call with the same key have
+    /// the same records: with the same source and upstream, one that leaves out pixels
+    /// without a gradient and one that keeps them select the same pixels where their
+    /// counts agree.
+    pub fn key(&self) -> [usize; 4] {
+        let (source, camera) = match self.source {
+            Source::Listed(p) => (p.as_ptr() as usize, usize::MAX),
+            Source::Map(m, Camera::Orthographic) => (m as *const NormalMap as usize, 0),
+            Source::Map(m, Camera::Perspective { fov_y_deg }) => {
+                (m as *const NormalMap as usize, fov_y_deg.to_bits() as usize)
+            }
+        };
+        let upstream = self.upstream.map_or(0, |u| u as *const Image as usize);
+        [source, camera, upstream, self.len]
+    }
+
     fn chunk(&self, c: usize) -> std::ops::Range<usize> {
         c * CHUNK..self.source.candidates().min((c + 1) * CHUNK)
     }

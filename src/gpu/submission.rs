@@ -42,6 +42,8 @@ pub struct Submission<'a> {
     uploads: wgpu::CommandEncoder,
     enc: wgpu::CommandEncoder,
     readback: Readback,
+    /// Pixel records uploaded in this call: usage, bytes and the selections' keys.
+    pixel_uploads: Vec<(wgpu::BufferUsages, u64, Vec<[usize; 4]>, wgpu::Buffer)>,
     passes: Vec<Encoded>,
     dispatches: Vec<Dispatch>,
 }
@@ -65,6 +67,7 @@ impl<'a> Submission<'a> {
             uploads: encoder("uploads"),
             enc: encoder(label),
             readback: Readback::default(),
+            pixel_uploads: Vec::new(),
             passes: Vec::new(),
             dispatches: Vec::new(),
         })
@@ -142,7 +145,8 @@ impl<'a> Submission<'a> {
 
     /// A buffer for `usage` of `bytes` (at least the records') holding the records of
     /// `sels`, one scene after another, computed on all cores straight into the staging
-    /// buffer.
+    /// buffer; the call's earlier upload of the same records where there is one (the
+    /// backward's two passes, where every foreground pixel has a gradient).
     pub fn upload_pixels(
         &mut self,
         label: &'static str,
@@ -150,14 +154,24 @@ impl<'a> Submission<'a> {
         sels: &[Selection<'_>],
         bytes: u64,
     ) -> Result<wgpu::Buffer> {
-        self.upload_with(label, usage, bytes, |out| {
+        let keys: Vec<[usize; 4]> = sels.iter().map(Selection::key).collect();
+        let same = |(u, b, k, _): &&(wgpu::BufferUsages, u64, Vec<[usize; 4]>, wgpu::Buffer)| {
+            *u == usage && *b == bytes && *k == keys
+        };
+        if let Some((.., buffer)) = self.pixel_uploads.iter().find(same) {
+            return Ok(buffer.clone());
+        }
+        let buffer = self.upload_with(label, usage, bytes, |out| {
             let mut out = out;
             for sel in sels {
                 let (head, tail) = out.split_at(sel.len() * size_of::<Pixel>());
                 sel.write(head);
                 out = tail;
             }
-        })
+        })?;
+        self.pixel_uploads
+            .push((usage, bytes, keys, buffer.clone()));
+        Ok(buffer)
     }
 
     /// The params buffer of `table` (uniform, or storage for the batched gather passes).
