@@ -24,8 +24,10 @@ fn pipelines_are_saved_loaded_and_a_damaged_file_ignored() {
         return;
     };
     assert!(!first.was_loaded(), "an empty folder holds nothing to load");
-    for pass in Pass::ALL {
-        Pipeline::new(&ctx.device, pass, Tiles::Uniform, Some(first.cache()));
+    for tiles in [Tiles::Workgroup, Tiles::Uniform] {
+        for pass in Pass::ALL {
+            Pipeline::new(&ctx.device, pass, tiles, Some(first.cache()));
+        }
     }
     first.save();
     let bytes = std::fs::read(first.path()).expect("the cache was saved");

@@ -181,10 +181,12 @@ impl<'a> Selection<'a> {
         // the chunk of candidates that holds record `first`, and the records before it there
         let c = self.starts.partition_point(|&s| s <= first) - 1;
         let skip = first - self.starts[c];
+        // skipped by their index alone: only the records written are computed
         let recs = (c * CHUNK..self.source.candidates())
-            .filter_map(|i| self.record(i))
+            .filter(|&i| self.index(i).is_some())
             .skip(skip)
             .take(n)
+            .filter_map(|i| self.record(i))
             .flat_map(|(_, p)| bytemuck::cast::<Pixel, [[u8; 16]; WORDS]>(p));
         out.into_chunks::<16>().0.write_iter(recs);
     }
