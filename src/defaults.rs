@@ -15,6 +15,11 @@
 
 use crate::envmap::{Convention, EnvMap};
 
+/// `matedit render`'s tolerance of the continuous light for the built-in sky (see
+/// [`crate::supersample`]): without it a glossy sphere shows the sky's texels as rings
+/// near its rim.
+pub const LIGHT_TOLERANCE: f64 = 5e-3;
+
 /// Direction towards the sun (unit; y up, z towards the viewer): 40 degrees above the
 /// horizon, at phi = 60 degrees, which both conventions cover.
 pub const SUN_DIR: [f64; 3] = [

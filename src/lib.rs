@@ -29,7 +29,7 @@
 //!
 //! - what uses the renderer: [`edit`] (a material fitted to an image), [`synth`]
 //!   (datasets), [`fit`] (the DSBRDF fitted to measured [`brdf`]s), [`io`] (files in and
-//!   out);
+//!   out), [`supersample`] (the continuous light);
 //! - [`renderer`]: [`Device`], [`Renderer`], [`Accuracy`];
 //! - [`lod`]: levels of detail, on any backend;
 //! - the backends: [`gpu`], [`cpu`], [`reference`](mod@reference);
@@ -64,6 +64,7 @@ pub mod renderer;
 pub mod scene;
 pub mod spline;
 pub mod splitmix;
+pub mod supersample;
 pub mod synth;
 
 pub use backend::{Backend, PassTiming};

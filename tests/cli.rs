@@ -1203,6 +1203,12 @@ fn bad_levels_of_detail() {
         (vec!["--method", "env0"], "block side"),
         (vec!["--tolerance", "0"], "not a positive number"),
         (vec!["--tolerance", "nan"], "not a positive number"),
+        (vec!["--light-tolerance", "0"], "not a positive number"),
+        (vec!["--supersample", "65"], "--supersample"),
+        (
+            vec!["--light-tolerance", "1e-3", "--supersample", "2"],
+            "cannot be used with",
+        ),
         (
             vec!["--tolerance", "1e-3", "--method", "env2"],
             "cannot be used with",

@@ -4,11 +4,12 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use matedit::Wanted;
 use matedit::io;
+use matedit::{Wanted, supersample};
 
 use super::shared::{
-    Failure, SceneArgs, check_method, print_timings, renderer, report, runtime, with_progress,
+    Failure, SceneArgs, check_method, print_timings, renderer, report, report_light, runtime,
+    with_progress,
 };
 
 /// Shown after the options by `matedit help grad`.
@@ -79,13 +80,22 @@ pub fn run(args: &Args) -> Result<(), Failure> {
     check_method(&accuracy, &loaded.batch)?;
     let renderer = renderer(args.scene.device, args.scene.threads)?;
     let start = Instant::now();
-    let (grads, choices) = with_progress("differentiating", || {
-        renderer.backward_wanted_with(&loaded.batch, &upstream, &accuracy, args.wanted())
+    let light = args.scene.light(supersample::Light::Discrete);
+    let (grads, (choices, light_choices)) = with_progress("differentiating", || {
+        supersample::backward(
+            &renderer,
+            &loaded.batch,
+            &upstream,
+            &accuracy,
+            light,
+            args.wanted(),
+        )
     })?;
     if args.scene.timings {
         print_timings(&renderer, start.elapsed());
     }
     report(&accuracy, &choices);
+    report_light(&light_choices);
     let written = io::outputs::write_gradients(&plan, &loaded.batch, &grads, args.wanted())
         .map_err(runtime)?;
     for p in written {

@@ -3,17 +3,18 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use matedit::io;
+use matedit::{defaults, io, supersample};
 
 use super::shared::{
-    Failure, PreviewArgs, SceneArgs, check_method, print_timings, renderer, report, runtime,
-    with_progress,
+    Failure, PreviewArgs, SceneArgs, check_method, print_timings, renderer, report, report_light,
+    runtime, with_progress,
 };
 
 /// Shown after the options by `matedit help render`.
 pub const EXAMPLES: &str = "\
 Examples:
   matedit render -o sphere.png
+  matedit render -o glossy.exr --preset chrome-ish --env studio.exr --light-tolerance 1e-3
   matedit render -o gold.exr --preset gold --env studio.exr --env-size 128x256
   matedit render -o face.npy --normals face_normals.png --material mat.json --fov 40
   matedit render --batch scenes.json -o renders/
@@ -46,13 +47,21 @@ pub fn run(args: &Args) -> Result<(), Failure> {
     check_method(&accuracy, &loaded.batch)?;
     let renderer = renderer(args.scene.device, args.scene.threads)?;
     let start = Instant::now();
-    let (images, choices) = with_progress("rendering", || {
-        renderer.render_with(&loaded.batch, &accuracy)
+    // the built-in sky is a picture to look at: its default is the continuous light
+    let builtin = args.scene.env.is_none() && args.scene.batch.is_none();
+    let light = args.scene.light(if builtin {
+        supersample::Light::Tolerance(defaults::LIGHT_TOLERANCE)
+    } else {
+        supersample::Light::Discrete
+    });
+    let (images, (choices, light_choices)) = with_progress("rendering", || {
+        supersample::render(&renderer, &loaded.batch, &accuracy, light)
     })?;
     if args.scene.timings {
         print_timings(&renderer, start.elapsed());
     }
     report(&accuracy, &choices);
+    report_light(&light_choices);
     let written =
         io::outputs::write_images(&plan, &images, &args.preview.preview()).map_err(runtime)?;
     for (p, image) in written.iter().zip(&images) {

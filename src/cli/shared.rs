@@ -9,7 +9,7 @@ use std::time::Duration;
 use matedit::io::job::{Plan, SceneOptions};
 use matedit::io::source::{MaterialSource, NormalsSource};
 use matedit::io::{self, EnvSize, Preview, Tonemap};
-use matedit::{Accuracy, Batch, Convention, Device, Error, Renderer, lod};
+use matedit::{Accuracy, Batch, Convention, Device, Error, Renderer, lod, supersample};
 
 /// A failure and the exit code it gets.
 pub struct Failure {
@@ -71,6 +71,12 @@ pub struct SceneArgs {
     /// A level of detail by name: 'exact', or parts joined by '+': envF (the map in F x F blocks), keepK (its K brightest texels kept), tableR (an R x R table of normals), cullB (lights culled within B of the largest value); tables and culling need an orthographic camera. E.g. table128+keep16.
     #[arg(long, value_name = "METHOD")]
     pub method: Option<lod::Method>,
+    /// The continuous light: each texel an area light of constant radiance, not a point; texels near each pixel's specular peak are split as finely as an estimate on sampled pixels says keeps the relative error within REL ('off': the layer's point lights) [default: off; `render` of the built-in sky: 5e-3].
+    #[arg(long, value_name = "REL|off", value_parser = parse_light_tolerance, conflicts_with = "supersample")]
+    pub light_tolerance: Option<LightTolerance>,
+    /// The continuous light at a fixed level Q (1 to 64): texels near each pixel's specular peak split so that about Q sub-texels span the lobe's width; 0 is the layer.
+    #[arg(long, value_name = "Q", value_parser = clap::value_parser!(u32).range(0..=64))]
+    pub supersample: Option<u32>,
     /// A JSON manifest listing several scenes, rendered in one batch (see docs/FORMATS.md). Options above are defaults for what it leaves out.
     #[arg(long, value_name = "MANIFEST")]
     pub batch: Option<PathBuf>,
@@ -86,6 +92,16 @@ impl SceneArgs {
             (Some(t), _) => Accuracy::Tolerance(t),
             (None, Some(m)) => Accuracy::Method(m),
             (None, None) => Accuracy::Exact,
+        }
+    }
+
+    /// `--light-tolerance` or `--supersample`, else `default`.
+    pub fn light(&self, default: supersample::Light) -> supersample::Light {
+        match (self.light_tolerance, self.supersample) {
+            (Some(LightTolerance(Some(t))), _) => supersample::Light::Tolerance(t),
+            (Some(LightTolerance(None)), _) => supersample::Light::Discrete,
+            (None, Some(q)) => supersample::Light::Level(q),
+            (None, None) => default,
         }
     }
 
@@ -162,6 +178,18 @@ pub fn parse_tolerance(s: &str) -> Result<f64, String> {
     } else {
         Err(format!("{v} is not a positive number"))
     }
+}
+
+/// `--light-tolerance`: a relative error, or `None` for 'off'.
+#[derive(Clone, Copy, Debug)]
+pub struct LightTolerance(pub Option<f64>);
+
+/// `--light-tolerance`: a positive number, or 'off'.
+pub fn parse_light_tolerance(s: &str) -> Result<LightTolerance, String> {
+    if s == "off" {
+        return Ok(LightTolerance(None));
+    }
+    parse_tolerance(s).map(|t| LightTolerance(Some(t)))
 }
 
 /// `--fov`: degrees in (0, 180).
@@ -270,18 +298,28 @@ pub fn check_method(accuracy: &Accuracy, batch: &Batch) -> Result<(), Failure> {
     Ok(())
 }
 
+/// The light each scene got with a tolerance, on stderr.
+pub fn report_light(choices: &[Option<supersample::Choice>]) {
+    report_each("continuous light", choices);
+}
+
+/// Each scene's choice, named `what`, on stderr.
+fn report_each<T: std::fmt::Display>(what: &str, choices: &[Option<T>]) {
+    for (b, c) in choices.iter().enumerate() {
+        if let Some(c) = c {
+            if choices.len() > 1 {
+                eprintln!("matedit: scene {b}: {what}: {c}");
+            } else {
+                eprintln!("matedit: {what}: {c}");
+            }
+        }
+    }
+}
+
 /// The level of detail used, on stderr.
 pub fn report(accuracy: &Accuracy, choices: &[Option<lod::Choice>]) {
     if let Accuracy::Method(m) = accuracy {
         eprintln!("matedit: level of detail: method {m}");
     }
-    for (b, c) in choices.iter().enumerate() {
-        if let Some(c) = c {
-            if choices.len() > 1 {
-                eprintln!("matedit: scene {b}: level of detail: {c}");
-            } else {
-                eprintln!("matedit: level of detail: {c}");
-            }
-        }
-    }
+    report_each("level of detail", choices);
 }

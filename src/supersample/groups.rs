@@ -1,0 +1,320 @@
+//! The corrections of one level: pixels grouped by the texel that holds their specular
+//! peak, and for each group the texels around it as s x s sub-texel lights (the area
+//! light) and as the layer's point lights, whose difference is what the group's pixels
+//! gain from the continuous light.
+
+use std::collections::BTreeMap;
+use std::f64::consts::PI;
+
+use rayon::prelude::*;
+
+use crate::Backend;
+use crate::envmap::{Convention, EnvMap};
+use crate::error::Result;
+use crate::prepare::{self, Light, PixelRec, Prepared};
+use crate::scene::{Gradients, Image};
+
+/// Largest split of a texel per axis.
+pub const MAX_SPLIT: usize = 8;
+/// Largest distance, in rows, of a split texel from a pixel's peak texel.
+pub const MAX_RADIUS: usize = 8;
+/// Lobe widths (the narrowest, see [`lobe_width`]) on either side of a peak that are split.
+const WIDTHS: f64 = 3.0;
+/// Pixels whose peaks fall in the same CELL x CELL block of texels form one group.
+const CELL: usize = 2;
+/// Groups per call of the backend.
+const CHUNK: usize = 64;
+
+/// The narrowest angular width, in light directions, of the sharpest lobe of a pixel at
+/// its peak (h = n): x^m1 = exp(m1 ln cos(a)) ~ exp(-m1 a^2 / 2) has width 1/sqrt(m1) in
+/// the half vector's angle a, which turns the light direction by 2 a in the plane of w_p
+/// and h and by 2 a cos(theta_d) across it. `None` where no lobe depends on x there.
+pub fn lobe_width(ctrl: &[f64; crate::N_PARAMS], cos_d: f64) -> Option<f64> {
+    let coef = prepare::coefficients(ctrl, cos_d.clamp(-1.0, 1.0).acos());
+    let m = (0..9)
+        .filter(|&ks| coef[ks * 2] != 0.0)
+        .map(|ks| coef[ks * 2 + 1])
+        .fold(0.0f64, f64::max);
+    (m > 0.0).then(|| 2.0 * cos_d / m.sqrt())
+}
+
+/// The split s of the texels near a pixel's peak at level `q` (a lobe width spans about
+/// q sub-texels), and how many rows around the peak are split; `None` for s = 1.
+fn split_of(env: &EnvMap, ctrl: &[f64; crate::N_PARAMS], p: &PixelRec, q: u32) -> Option<Key> {
+    let len = prepare::dot(p.n, p.n).sqrt();
+    let n = p.n.map(|v| v / len);
+    let c = prepare::dot(n, p.wp);
+    if c <= 0.0 || q == 0 {
+        return None;
+    }
+    let sigma = lobe_width(ctrl, c)?;
+    let texel = PI / env.height as f64;
+    let split = ((f64::from(q) * texel / sigma).ceil() as usize).clamp(1, MAX_SPLIT);
+    if split == 1 {
+        return None;
+    }
+    let radius = ((WIDTHS * sigma / texel + 0.5).ceil() as usize).min(MAX_RADIUS);
+    let r = [0, 1, 2].map(|k| 2.0 * c * n[k] - p.wp[k]);
+    let theta = r[1].clamp(-1.0, 1.0).acos();
+    let phi = r[2].atan2(r[0]).rem_euclid(2.0 * PI);
+    let row = ((theta / PI * env.height as f64) as usize).min(env.height - 1) / CELL;
+    let col = ((phi / (2.0 * PI) * env.width as f64) as usize).min(env.width - 1) / CELL;
+    Some(Key {
+        cell: (row, col),
+        split,
+        radius,
+    })
+}
+
+/// What a group shares: the cell of texels its peaks are in, the split and the radius.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+struct Key {
+    cell: (usize, usize),
+    split: usize,
+    radius: usize,
+}
+
+/// The texels within `radius` rows of the cell (and as many columns' worth of angle in
+/// each row; all columns where a row is that close to a pole), lit ones only.
+fn neighbourhood(env: &EnvMap, cell: (usize, usize), radius: usize) -> Vec<usize> {
+    let (h, w) = (env.height, env.width);
+    let (row, col) = (cell.0 * CELL, cell.1 * CELL);
+    let mut out = Vec::new();
+    for r in row.saturating_sub(radius)..(row + CELL + radius).min(h) {
+        // the row's narrowest column, at its edge nearer the pole
+        let sin = (r as f64 * PI / h as f64)
+            .sin()
+            .min(((r + 1) as f64 * PI / h as f64).sin());
+        let col_angle = sin * 2.0 * PI / w as f64;
+        let half = (radius as f64 * PI / h as f64 / col_angle.max(1e-12)).ceil();
+        let cols: Vec<usize> = if 2.0 * half + CELL as f64 >= w as f64 {
+            (0..w).collect()
+        } else {
+            let half = half as usize;
+            (0..2 * half + CELL)
+                .map(|k| (col + w + k - half) % w)
+                .collect()
+        };
+        for c in cols {
+            let t = r * w + c;
+            if env.texels[t].iter().any(|&v| v != 0.0) {
+                out.push(t);
+            }
+        }
+    }
+    out
+}
+
+/// One group's texels, and its scenes: the texels as s x s sub-texels, then as points.
+fn group(
+    prep: &Prepared,
+    env: &EnvMap,
+    key: Key,
+    pixels: &[&PixelRec],
+) -> Option<(Group, [Prepared; 2])> {
+    let texels = neighbourhood(env, key.cell, key.radius);
+    if texels.is_empty() {
+        return None;
+    }
+    let s = key.split;
+    let local: Vec<PixelRec> = pixels
+        .iter()
+        .enumerate()
+        .map(|(k, p)| PixelRec { index: k, ..**p })
+        .collect();
+    let (mut area, mut point) = (Vec::new(), Vec::new());
+    for (t, &i) in texels.iter().enumerate() {
+        let (r, c) = (i / env.width, i % env.width);
+        let l = env.texels[i].map(f64::from);
+        let (w, d_omega) = Convention::Equirect.texel(r, c, env.height, env.width);
+        point.push(Light {
+            index: t,
+            w,
+            d_omega,
+            l,
+        });
+        for a in 0..s {
+            for b in 0..s {
+                let (w, d_omega) =
+                    Convention::Equirect.texel(r * s + a, c * s + b, env.height * s, env.width * s);
+                area.push(Light {
+                    index: (t * s + a) * s + b,
+                    w,
+                    d_omega,
+                    l,
+                });
+            }
+        }
+    }
+    let n = local.len();
+    let scene = |lights: &[Light]| {
+        Prepared::from_lights(
+            n,
+            1,
+            local.clone(),
+            1,
+            lights.len(),
+            lights,
+            &prep.ctrl,
+            prep.camera,
+        )
+    };
+    Some((
+        Group {
+            pixels: pixels.iter().map(|p| p.index).collect(),
+            texels,
+            split: s,
+        },
+        [scene(&area), scene(&point)],
+    ))
+}
+
+/// One group: its pixels, its texels, and the two scenes whose difference it adds.
+struct Group {
+    /// Image index of each of the group's pixels (local pixel k is `pixels[k]`).
+    pixels: Vec<usize>,
+    /// Map index of each split texel (local texel t is `texels[t]`).
+    texels: Vec<usize>,
+    split: usize,
+}
+
+/// What a level adds to the layer on a scene's pixels.
+pub struct Corrections {
+    groups: Vec<Group>,
+    /// Per group, the area-light scene then the point-light scene.
+    scenes: Vec<Prepared>,
+}
+
+impl Corrections {
+    /// The corrections of level `q` for the pixels of `prep` (whose map is `env`, under
+    /// the equirect convention).
+    pub fn new(prep: &Prepared, env: &EnvMap, q: u32) -> Self {
+        let mut by_key: BTreeMap<Key, Vec<&PixelRec>> = BTreeMap::new();
+        for p in &prep.pixels {
+            if let Some(k) = split_of(env, &prep.ctrl, p, q) {
+                by_key.entry(k).or_default().push(p);
+            }
+        }
+        let built: Vec<(Group, [Prepared; 2])> = by_key
+            .into_par_iter()
+            .filter_map(|(key, pixels)| group(prep, env, key, &pixels))
+            .collect();
+        let mut groups = Vec::with_capacity(built.len());
+        let mut scenes = Vec::with_capacity(2 * built.len());
+        for (g, [area, point]) in built {
+            groups.push(g);
+            scenes.push(area);
+            scenes.push(point);
+        }
+        Corrections { groups, scenes }
+    }
+
+    /// Whether the level changes nothing (every pixel's split is 1).
+    pub fn is_empty(&self) -> bool {
+        self.groups.is_empty()
+    }
+
+    /// Groups, largest split, most texels in a group, most pixels in a group.
+    pub fn describe(&self) -> String {
+        format!(
+            "{} groups, split up to {}, up to {} texels and {} pixels a group",
+            self.groups.len(),
+            self.groups.iter().map(|g| g.split).max().unwrap_or(1),
+            self.groups
+                .iter()
+                .map(|g| g.texels.len())
+                .max()
+                .unwrap_or(0),
+            self.groups
+                .iter()
+                .map(|g| g.pixels.len())
+                .max()
+                .unwrap_or(0)
+        )
+    }
+
+    /// Pixel-light pairs the corrections evaluate.
+    pub fn pairs(&self) -> usize {
+        self.scenes
+            .iter()
+            .map(|s| s.pixels.len() * s.texels.len())
+            .sum()
+    }
+
+    /// Adds the corrections to `image` (the layer's image of the scene).
+    pub fn add_forward(&self, backend: &dyn Backend, image: &mut Image) -> Result<()> {
+        if self.is_empty() {
+            return Ok(());
+        }
+        let images: Vec<Image> = self
+            .scenes
+            .par_chunks(2 * CHUNK)
+            .map(|c| backend.render_prepared(c))
+            .collect::<Result<Vec<_>>>()?
+            .into_iter()
+            .flatten()
+            .collect();
+        for (g, pair) in self.groups.iter().zip(images.chunks(2)) {
+            for (k, &i) in g.pixels.iter().enumerate() {
+                for ch in 0..3 {
+                    image.pixels[i][ch] += pair[0].pixels[k][ch] - pair[1].pixels[k][ch];
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Adds the corrections' gradients for `upstream` to `grads` (the layer's): each
+    /// sub-texel's dLoss/dL goes back to its texel, since they share its radiance.
+    pub fn add_backward(
+        &self,
+        backend: &dyn Backend,
+        upstream: &Image,
+        grads: &mut Gradients,
+    ) -> Result<()> {
+        if self.is_empty() {
+            return Ok(());
+        }
+        let ups: Vec<Image> = self
+            .groups
+            .iter()
+            .flat_map(|g| {
+                let pixels: Vec<[f32; 3]> = g.pixels.iter().map(|&i| upstream.pixels[i]).collect();
+                let up = Image {
+                    width: pixels.len(),
+                    height: 1,
+                    pixels,
+                };
+                [up.clone(), up]
+            })
+            .collect();
+        let gs: Vec<Gradients> = self
+            .scenes
+            .par_chunks(2 * CHUNK)
+            .zip(ups.par_chunks(2 * CHUNK))
+            .map(|(c, u)| backend.backward_prepared(c, u))
+            .collect::<Result<Vec<_>>>()?
+            .into_iter()
+            .flatten()
+            .collect();
+        for (g, pair) in self.groups.iter().zip(gs.chunks(2)) {
+            let (area, point) = (&pair[0], &pair[1]);
+            for (k, &i) in g.pixels.iter().enumerate() {
+                for ax in 0..3 {
+                    grads.d_normals[i][ax] += area.d_normals[k][ax] - point.d_normals[k][ax];
+                }
+            }
+            let ss = g.split * g.split;
+            for (t, &i) in g.texels.iter().enumerate() {
+                for ch in 0..3 {
+                    let sub: f32 = area.d_env[t * ss..(t + 1) * ss].iter().map(|d| d[ch]).sum();
+                    grads.d_env[i][ch] += sub - point.d_env[t][ch];
+                }
+            }
+            for (c, d) in grads.d_ctrl.iter_mut().enumerate() {
+                *d += area.d_ctrl[c] - point.d_ctrl[c];
+            }
+        }
+        Ok(())
+    }
+}

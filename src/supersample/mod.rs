@@ -1,0 +1,280 @@
+//! The continuous light: the layer with each texel of an equirect map taken as an area
+//! light of constant radiance over its patch of directions, instead of a point light at
+//! its centre (docs/CONVENTIONS.md, "The continuous light"; docs/light.md).
+//!
+//! A texel split into s x s sub-texels of the same radiance, each a point light with its
+//! own direction and solid angle, converges to the area light as s grows. Only a lobe
+//! narrower than a texel tells the two apart, and only near its peak, so a level `q`
+//! splits only the texels within a few lobe widths of each pixel's specular peak (the
+//! mirror direction of w_p about n), each into as many sub-texels as put about `q` of
+//! them across the lobe's narrowest width ([`lobe_width`]; a grazing view narrows it).
+//! Each pixel then gets what the split adds: the area lights' sum less the point lights'
+//! sum over those texels ([`Corrections`]). Pixels whose lobe is wider than a texel, and
+//! every pixel of a diffuse material, keep the layer's value. dLoss/dL is the adjoint:
+//! each sub-texel's gradient goes back to its texel.
+//!
+//! [`choose`] picks the level per scene from a measurement: on a sample of the pixels,
+//! each level against the next finer one, the first whose difference (max over max, as
+//! the levels of detail measure) is within half the tolerance.
+
+mod groups;
+
+pub use groups::{Corrections, MAX_RADIUS, MAX_SPLIT, lobe_width};
+
+use crate::envmap::Convention;
+use crate::error::{Error, Result};
+use crate::prepare::{PixelRec, Prepared};
+use crate::renderer::{Accuracy, Renderer};
+use crate::scene::{Batch, Gradients, Image, Scene, Wanted};
+use crate::{Backend, lod};
+
+/// The levels [`choose`] tries, coarse to fine: sub-texels across a lobe's width.
+pub const LEVELS: [u32; 5] = [1, 2, 4, 8, 16];
+/// Largest level accepted.
+pub const MAX_LEVEL: u32 = 64;
+/// Most pixels the estimate samples.
+const SAMPLED: usize = 2048;
+/// A level is taken when this many times its measured difference is within tolerance.
+const SAFETY: f64 = 2.0;
+
+/// How the light is integrated.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum Light {
+    /// The layer: each texel a point light.
+    #[default]
+    Discrete,
+    /// The texels near each pixel's peak split so that about this many sub-texels span the
+    /// lobe's width (0: the layer).
+    Level(u32),
+    /// The coarsest level whose estimated relative error against the continuous light is
+    /// within this.
+    Tolerance(f64),
+}
+
+impl Light {
+    /// Checks the value and that the scene's map has solid angles to split.
+    pub fn validate(&self, scene: &Scene) -> Result<()> {
+        match *self {
+            Light::Discrete | Light::Level(0) => return Ok(()),
+            Light::Level(q) if q > MAX_LEVEL => {
+                return Err(Error::Invalid(format!(
+                    "light: level {q} is above {MAX_LEVEL}"
+                )));
+            }
+            Light::Tolerance(t) if !(t.is_finite() && t > 0.0) => {
+                return Err(Error::Invalid(format!(
+                    "light: tolerance {t} is not a positive number"
+                )));
+            }
+            _ => {}
+        }
+        if scene.env.convention != Convention::Equirect {
+            return Err(Error::Invalid(
+                "light: the continuous light needs the equirect convention (the paper's \
+                 d_omega is not a solid angle to split)"
+                    .into(),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// The level a scene got and why.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Choice {
+    /// The level (0: the layer).
+    pub level: u32,
+    /// The measured difference from the next finer level, max over max, on the sample.
+    pub estimate: f64,
+    /// Sampled pixels.
+    pub sampled: usize,
+    /// The tolerance.
+    pub tolerance: f64,
+    /// Whether the finest level was taken without meeting the tolerance.
+    pub unmet: bool,
+}
+
+impl std::fmt::Display for Choice {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let what = if self.level == 0 {
+            "discrete (each texel a point light)".to_string()
+        } else {
+            format!("level {}", self.level)
+        };
+        write!(
+            f,
+            "{what} (estimated error {:.2e} on {} sampled pixels, tolerance {:e}{})",
+            self.estimate,
+            self.sampled,
+            self.tolerance,
+            if self.unmet {
+                "; not met at the finest level"
+            } else {
+                ""
+            }
+        )
+    }
+}
+
+/// The largest difference between `a` and `b` over the largest value of `b`.
+fn relative(a: &[[f32; 3]], b: &[[f32; 3]]) -> f64 {
+    let max = b.iter().flatten().fold(0.0f64, |m, &v| m.max(f64::from(v)));
+    let diff = a
+        .iter()
+        .flatten()
+        .zip(b.iter().flatten())
+        .fold(0.0f64, |m, (&x, &y)| {
+            m.max((f64::from(x) - f64::from(y)).abs())
+        });
+    if max > 0.0 { diff / max } else { diff }
+}
+
+/// The coarsest level of [`LEVELS`] (or the layer) whose difference from the next finer
+/// level that changes anything, measured on a stratified sample of the pixels, is within
+/// `tol / 2`; the finest level if none is.
+pub fn choose(backend: &dyn Backend, scene: &Scene, tol: f64) -> Result<Choice> {
+    Light::Tolerance(tol).validate(scene)?;
+    let prep = Prepared::new(scene);
+    let step = prep.pixels.len().div_ceil(SAMPLED).max(1);
+    let pixels: Vec<PixelRec> = prep
+        .pixels
+        .iter()
+        .step_by(step)
+        .enumerate()
+        .map(|(k, p)| PixelRec { index: k, ..*p })
+        .collect();
+    let sampled = pixels.len();
+    let sample = prep.with_pixels(sampled, 1, pixels);
+    let base = backend
+        .render_prepared(std::slice::from_ref(&sample))?
+        .remove(0);
+    let (mut level, mut values) = (0, base.clone());
+    let mut estimate = 0.0;
+    for q in LEVELS {
+        let corr = Corrections::new(&sample, &scene.env, q);
+        if corr.is_empty() {
+            continue;
+        }
+        let mut finer = base.clone();
+        corr.add_forward(backend, &mut finer)?;
+        estimate = relative(&values.pixels, &finer.pixels);
+        if SAFETY * estimate <= tol {
+            return Ok(Choice {
+                level,
+                estimate,
+                sampled,
+                tolerance: tol,
+                unmet: false,
+            });
+        }
+        (level, values) = (q, finer);
+    }
+    Ok(Choice {
+        level,
+        estimate,
+        sampled,
+        tolerance: tol,
+        unmet: level != 0,
+    })
+}
+
+/// Each scene's level under `light`, and the choice where a tolerance made it.
+fn levels(
+    backend: &dyn Backend,
+    batch: &Batch,
+    light: Light,
+) -> Result<Vec<(u32, Option<Choice>)>> {
+    batch
+        .scenes()
+        .iter()
+        .map(|s| {
+            light.validate(s)?;
+            Ok(match light {
+                Light::Discrete => (0, None),
+                Light::Level(q) => (q, None),
+                Light::Tolerance(t) => {
+                    let c = choose(backend, s, t)?;
+                    (c.level, Some(c))
+                }
+            })
+        })
+        .collect()
+}
+
+/// What [`render`] and [`backward`] chose per scene: the level of detail and the light.
+pub type Choices = (Vec<Option<lod::Choice>>, Vec<Option<Choice>>);
+
+/// One image per scene under `accuracy` (the levels of detail) and `light`: the layer's
+/// image plus each scene's corrections.
+pub fn render(
+    renderer: &Renderer,
+    batch: &Batch,
+    accuracy: &Accuracy,
+    light: Light,
+) -> Result<(Vec<Image>, Choices)> {
+    let levels = levels(renderer.backend(), batch, light)?;
+    let (mut images, lod_choices) = renderer.render_with(batch, accuracy)?;
+    for ((scene, image), &(q, _)) in batch.scenes().iter().zip(&mut images).zip(&levels) {
+        Corrections::new(&Prepared::new(scene), &scene.env, q)
+            .add_forward(renderer.backend(), image)?;
+    }
+    check(images.iter().map(|i| &i.pixels), "image")?;
+    let light_choices = levels.into_iter().map(|(_, c)| c).collect();
+    Ok((images, (lod_choices, light_choices)))
+}
+
+/// Gradients per scene under `accuracy` and `light`, only those `wanted` (the others
+/// zeros): the layer's plus each scene's corrections' (which compute all three).
+pub fn backward(
+    renderer: &Renderer,
+    batch: &Batch,
+    upstream: &[Image],
+    accuracy: &Accuracy,
+    light: Light,
+    wanted: Wanted,
+) -> Result<(Vec<Gradients>, Choices)> {
+    let levels = levels(renderer.backend(), batch, light)?;
+    let (mut grads, lod_choices) =
+        renderer.backward_wanted_with(batch, upstream, accuracy, wanted)?;
+    if wanted.any() {
+        for (((scene, g), u), &(q, _)) in batch
+            .scenes()
+            .iter()
+            .zip(&mut grads)
+            .zip(upstream)
+            .zip(&levels)
+        {
+            Corrections::new(&Prepared::new(scene), &scene.env, q).add_backward(
+                renderer.backend(),
+                u,
+                g,
+            )?;
+            g.keep(wanted);
+        }
+    }
+    check(grads.iter().map(|g| &g.d_env), "d_env")?;
+    check(grads.iter().map(|g| &g.d_normals), "d_normals")?;
+    if grads
+        .iter()
+        .any(|g| g.d_ctrl.iter().any(|v| !v.is_finite()))
+    {
+        return Err(Error::Invalid(
+            "d_ctrl: overflowed f32; scale the upstream gradient down".into(),
+        ));
+    }
+    let light_choices = levels.into_iter().map(|(_, c)| c).collect();
+    Ok((grads, (lod_choices, light_choices)))
+}
+
+/// An error naming the first scene whose output `what` is not finite.
+fn check<'a>(outputs: impl Iterator<Item = &'a Vec<[f32; 3]>>, what: &str) -> Result<()> {
+    for (b, v) in outputs.enumerate() {
+        if v.iter().flatten().any(|x| !x.is_finite()) {
+            return Err(Error::Invalid(format!(
+                "{what}: scene {b} overflowed f32 with the continuous light; scale the radiance \
+                 or the upstream gradient down"
+            )));
+        }
+    }
+    Ok(())
+}

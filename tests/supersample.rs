@@ -1,0 +1,173 @@
+//! The continuous light (`matedit::supersample`): level 0 and diffuse materials are the
+//! layer bit for bit, the corrections converge towards the map's texels as area lights
+//! (the map refined uniformly, each texel s x s copies), a tolerance is met there, and the
+//! gradients are the adjoint (linearity in L, finite differences in a control point).
+
+use matedit::supersample::{self, Light};
+use matedit::{
+    Accuracy, Batch, Camera, Convention, Device, EnvMap, Image, NormalMap, Renderer, Scene, Wanted,
+    defaults, presets,
+};
+
+fn scene(preset: &str, env: EnvMap) -> Batch {
+    Batch::single(Scene {
+        normals: NormalMap::sphere(40),
+        env,
+        material: presets::lookup(preset).expect("a preset"),
+        camera: Camera::Orthographic,
+    })
+    .expect("a valid scene")
+}
+
+fn sky() -> EnvMap {
+    defaults::procedural_env(16, 32, Convention::Equirect)
+}
+
+/// Each texel as s x s texels of its radiance: the layer on it is the area light's sum.
+fn refined(env: &EnvMap, s: usize) -> EnvMap {
+    let w = env.width * s;
+    let texels = (0..env.height * s * w)
+        .map(|i| env.texels[(i / w / s) * env.width + (i % w) / s])
+        .collect();
+    EnvMap::new(env.height * s, w, env.convention, texels).expect("valid")
+}
+
+fn render(r: &Renderer, b: &Batch, light: Light) -> Image {
+    supersample::render(r, b, &Accuracy::Exact, light)
+        .expect("renders")
+        .0
+        .remove(0)
+}
+
+/// max |a - b| / max b.
+fn rel(a: &Image, b: &Image) -> f64 {
+    let d = a
+        .pixels
+        .iter()
+        .flatten()
+        .zip(b.pixels.iter().flatten())
+        .fold(0.0f64, |m, (x, y)| m.max(f64::from((x - y).abs())));
+    d / f64::from(b.max_value())
+}
+
+#[test]
+fn level_zero_and_diffuse_are_the_layer_bitwise() {
+    let r = Renderer::new(Device::Cpu).unwrap();
+    let b = scene("red-specular-plastic", sky());
+    let layer = r.render(&b).unwrap().remove(0);
+    assert_eq!(render(&r, &b, Light::Level(0)), layer);
+    assert_eq!(render(&r, &b, Light::Discrete), layer);
+    // a diffuse material: the measurement finds nothing to gain
+    let b = scene("matte-white", sky());
+    let c = supersample::choose(r.backend(), &b.scenes()[0], 1e-4).unwrap();
+    assert_eq!(c.level, 0, "{c}");
+    assert_eq!(
+        render(&r, &b, Light::Tolerance(1e-4)),
+        r.render(&b).unwrap().remove(0)
+    );
+}
+
+#[test]
+fn converges_to_the_area_lights_and_meets_the_tolerance() {
+    let r = Renderer::new(Device::Cpu).unwrap();
+    let env = sky();
+    let b = scene("red-specular-plastic", env.clone());
+    let truth = r
+        .render(&scene("red-specular-plastic", refined(&env, 16)))
+        .unwrap()
+        .remove(0);
+    let errs: Vec<f64> = [0, 1, 2, 4]
+        .map(|q| rel(&render(&r, &b, Light::Level(q)), &truth))
+        .to_vec();
+    // measured: 0.52, then 0.063 at every level (a 16 x 32 map: every lobe split at the
+    // largest split, 8)
+    for w in errs.windows(2) {
+        assert!(
+            w[1] <= w[0] * 1.0001,
+            "errors by level 0, 1, 2, 4: {errs:?}"
+        );
+    }
+    assert!(errs[3] < errs[0] / 5.0, "{errs:?}");
+    let tol = 1e-1;
+    let c = supersample::choose(r.backend(), &b.scenes()[0], tol).unwrap();
+    let e = rel(&render(&r, &b, Light::Tolerance(tol)), &truth);
+    assert!(c.level > 0 && e <= tol, "{c}: error {e}");
+}
+
+#[test]
+fn gradients_are_the_adjoint() {
+    let r = Renderer::new(Device::Reference).unwrap();
+    let b = scene("red-specular-plastic", sky());
+    let light = Light::Level(2);
+    let n = 40 * 40;
+    let up = Image {
+        width: 40,
+        height: 40,
+        pixels: (0..n).map(|i| [1.0, (i % 7) as f32 / 7.0, 0.5]).collect(),
+    };
+    let loss = |b: &Batch| -> f64 {
+        render(&r, b, light)
+            .pixels
+            .iter()
+            .zip(&up.pixels)
+            .map(|(p, u)| (0..3).map(|k| f64::from(p[k] * u[k])).sum::<f64>())
+            .sum()
+    };
+    let g = supersample::backward(
+        &r,
+        &b,
+        std::slice::from_ref(&up),
+        &Accuracy::Exact,
+        light,
+        Wanted::ALL,
+    )
+    .unwrap()
+    .0
+    .remove(0);
+    // the layer is linear in L: the loss of L + dL is the loss of L plus d_env . dL
+    let mut env = sky();
+    let mut expected = 0.0;
+    for (i, t) in env.texels.iter_mut().enumerate() {
+        let d = (i % 5) as f32 * 0.1;
+        t[1] += d;
+        expected += f64::from(g.d_env[i][1] * d);
+    }
+    let got = loss(&scene("red-specular-plastic", env)) - loss(&b);
+    assert!(
+        (got - expected).abs() < 1e-4 * expected.abs(),
+        "{got} vs {expected}"
+    );
+    // a control point of the glossy lobe's exponent, by central differences
+    let idx = matedit::material::idx(0, 1, 1, 3);
+    let mut m = presets::lookup("red-specular-plastic").unwrap();
+    let h = 1e-3 * m.ctrl[idx].abs().max(1.0);
+    let mut at = |v: f64| {
+        m.ctrl[idx] = v;
+        let mut s = b.scenes()[0].clone();
+        s.material = m.clone();
+        loss(&Batch::single(s).unwrap())
+    };
+    let c = presets::lookup("red-specular-plastic").unwrap().ctrl[idx];
+    let fd = (at(c + h) - at(c - h)) / (2.0 * h);
+    let an = f64::from(g.d_ctrl[idx]);
+    assert!((fd - an).abs() < 1e-3 * an.abs().max(1e-3), "{fd} vs {an}");
+}
+
+#[test]
+fn bad_values_are_errors() {
+    let r = Renderer::new(Device::Cpu).unwrap();
+    let mut s = scene("clay", sky()).scenes()[0].clone();
+    s.env.convention = Convention::Paper;
+    let b = Batch::single(s).unwrap();
+    let e = supersample::render(&r, &b, &Accuracy::Exact, Light::Level(2)).unwrap_err();
+    assert!(e.to_string().contains("equirect"), "{e}");
+    let b = scene("clay", sky());
+    for light in [
+        Light::Level(65),
+        Light::Tolerance(0.0),
+        Light::Tolerance(f64::NAN),
+    ] {
+        let e = supersample::render(&r, &b, &Accuracy::Exact, light).unwrap_err();
+        assert!(e.to_string().starts_with("light: "), "{e}");
+    }
+}
