@@ -196,7 +196,7 @@ fn render_each_format_matches_the_library() {
     for ext in ["exr", "npy", "png"] {
         let out = d.path().join(format!("out.{ext}"));
         let res = matedit()
-            .args(["render", "-o", path_str(&out)])
+            .args(["render", "-o", path_str(&out), "--light-tolerance", "off"])
             .args(SMALL)
             .output()
             .unwrap();
@@ -229,6 +229,31 @@ fn render_each_format_matches_the_library() {
 }
 
 #[test]
+fn the_built_in_sky_renders_the_continuous_light() {
+    let d = dir();
+    let out = d.path().join("c.npy");
+    let run = |extra: &[&str]| {
+        let res = matedit()
+            .args(["render", "-o", path_str(&out), "--preset", "chrome-ish"])
+            .args(["--sphere", "24", "--env-size", "16x32"])
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(res.status.success());
+        String::from_utf8_lossy(&res.stderr).into_owned()
+    };
+    // by default a level is chosen and reported; 'off' is the layer, as is any --env
+    assert!(run(&[]).contains("matedit: continuous light: level"));
+    assert!(!run(&["--light-tolerance", "off"]).contains("continuous light"));
+    // the paper convention has no solid angles to split: one line, exit 2
+    fails_with(
+        tiny_render(&out).args(["--supersample", "2", "--convention", "paper"]),
+        d.path(),
+        &["light:", "equirect"],
+    );
+}
+
+#[test]
 fn png_exposure_and_tonemap() {
     let d = dir();
     let out = d.path().join("p.png");
@@ -237,6 +262,8 @@ fn png_exposure_and_tonemap() {
             "render",
             "-o",
             path_str(&out),
+            "--light-tolerance",
+            "off",
             "--exposure",
             "-1.5",
             "--tonemap",

@@ -78,9 +78,12 @@ pub fn run(args: &Args) -> Result<(), Failure> {
     }
     let accuracy = args.scene.accuracy();
     check_method(&accuracy, &loaded.batch)?;
+    let light = args.scene.light(supersample::Light::Discrete);
+    for s in loaded.batch.scenes() {
+        light.validate(s)?;
+    }
     let renderer = renderer(args.scene.device, args.scene.threads)?;
     let start = Instant::now();
-    let light = args.scene.light(supersample::Light::Discrete);
     let (grads, (choices, light_choices)) = with_progress("differentiating", || {
         supersample::backward(
             &renderer,

@@ -45,8 +45,6 @@ pub fn run(args: &Args) -> Result<(), Failure> {
     }
     let accuracy = args.scene.accuracy();
     check_method(&accuracy, &loaded.batch)?;
-    let renderer = renderer(args.scene.device, args.scene.threads)?;
-    let start = Instant::now();
     // the built-in sky is a picture to look at: its default is the continuous light
     let builtin = args.scene.env.is_none() && args.scene.batch.is_none();
     let light = args.scene.light(if builtin {
@@ -54,6 +52,11 @@ pub fn run(args: &Args) -> Result<(), Failure> {
     } else {
         supersample::Light::Discrete
     });
+    for s in loaded.batch.scenes() {
+        light.validate(s)?;
+    }
+    let renderer = renderer(args.scene.device, args.scene.threads)?;
+    let start = Instant::now();
     let (images, (choices, light_choices)) = with_progress("rendering", || {
         supersample::render(&renderer, &loaded.batch, &accuracy, light)
     })?;
