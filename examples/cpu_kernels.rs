@@ -3,11 +3,13 @@
 //! alternated, and the largest difference between their results.
 //!
 //! `cargo run --release --example cpu_kernels -- [--scene sphereN|bumpyWxH] [--material
-//! random-SEED|PRESET] [--env HxW] [--reps N] [--kernels plan,dense] [--pass fwd,bwd]`
+//! random-SEED[:L]|PRESET] [--env HxW] [--reps N] [--kernels plan,dense] [--pass fwd,bwd]`
 //! (defaults: sphere256, random-1, the built-in sky at 64 x 128, 5 reps, both kernels, both
 //! passes). Times are medians of the prepared scene's forward (`fwd`) and backward (`bwd`)
 //! calls of `FastCpu`, after a warm-up, in M pixel-texel pairs per second. With `--reps 1`
-//! and one kernel and pass it is also what valgrind counts instructions on.
+//! and one kernel and pass it is also what valgrind counts instructions on. `--math exp2|
+//! exp2m1|ln1m` instead evaluates that function of `matedit::cpu::math` on 2^20 values
+//! `--reps` times (valgrind's count per value, from two rep counts, is its cost in a lane).
 
 use std::time::Instant;
 
@@ -35,11 +37,23 @@ fn normals(name: &str) -> Option<NormalMap> {
     Some(NormalMap::bumpy(w, h, 1))
 }
 
+/// A preset, `random-SEED`, or `random-SEED:L`: its first L lobes per channel only (the
+/// others' scales 0; the image leaves them out).
 fn material(name: &str) -> Option<Material> {
-    match name.strip_prefix("random-").map(str::parse::<u64>) {
-        Some(Ok(seed)) => Some(Material::random(seed)),
-        _ => matedit::presets::lookup(name),
+    let Some(rest) = name.strip_prefix("random-") else {
+        return matedit::presets::lookup(name);
+    };
+    let (seed, lobes) = rest.split_once(':').unwrap_or((rest, "3"));
+    let (seed, lobes): (u64, usize) = (seed.parse().ok()?, lobes.parse().ok()?);
+    let mut ctrl = Material::random(seed).ctrl;
+    for k in 0..3 {
+        for s in lobes..3 {
+            for j in 0..6 {
+                ctrl[matedit::material::idx(k, s, 0, j)] = 0.0;
+            }
+        }
     }
+    Material::new(name, &ctrl).ok()
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -70,6 +84,9 @@ fn main() -> Result<(), String> {
         .map_err(|_| "--reps: expected a number")?;
     let kernels = arg(&args, "--kernels", "plan,dense");
     let passes = arg(&args, "--pass", "fwd,bwd");
+    if let Some(f) = args.iter().position(|a| a == "--math") {
+        return math(args.get(f + 1).map_or("", String::as_str), reps);
+    }
     let scene = Scene {
         normals: normals(&scene_name).ok_or(format!("unknown scene '{scene_name}'"))?,
         env: matedit::defaults::procedural_env(hl, wl, Convention::Equirect),
@@ -77,6 +94,17 @@ fn main() -> Result<(), String> {
         camera: Camera::Orthographic,
     };
     let prep = Prepared::new(&scene);
+    let plan = matedit::cpu::table::LobePlan::new(&prep.ctrl, |_, _| true);
+    let groups = plan.groups.iter().filter(|g| g.exp_col.is_some()).count();
+    let lobes: usize = plan.groups.iter().map(|g| g.lobes.len()).sum();
+    let channels: u32 = plan
+        .groups
+        .iter()
+        .flat_map(|g| g.lobes.iter().map(|l| l.channels.count_ones()))
+        .sum();
+    println!(
+        "backward plan: {groups} exponent groups, {lobes} lobes for {channels} (channel, lobe)s"
+    );
     let g: Vec<[f32; 3]> = (0..prep.width * prep.height)
         .map(|i| [1.0, 0.5 + (i % 7) as f32 * 0.1, -0.25])
         .collect();
@@ -134,5 +162,35 @@ fn main() -> Result<(), String> {
             }
         }
     }
+    Ok(())
+}
+
+/// `--math`: one function of the kernels' math over 2^20 values in (0, 1), `reps` times.
+fn math(name: &str, reps: usize) -> Result<(), String> {
+    use matedit::cpu::math::{MathFn, eval};
+    let f = match name {
+        "exp2" => MathFn::Exp2,
+        "exp2m1" => MathFn::Exp2m1,
+        "ln1m" => MathFn::Ln1m,
+        _ => return Err(format!("--math '{name}': expected exp2, exp2m1 or ln1m")),
+    };
+    let cpu = FastCpu::new().map_err(|e| e.to_string())?;
+    // arguments as the kernels see them: exponents of x^m1 in (-8, 0), lobe arguments
+    // in (0, 2), and 1 - x in (0, 1)
+    let xs: Vec<f32> = (0..1 << 20)
+        .map(|i| {
+            let t = (i as f32 + 0.5) / (1 << 20) as f32;
+            match f {
+                MathFn::Exp2 => -8.0 * t,
+                MathFn::Exp2m1 => 2.0 * t,
+                _ => t,
+            }
+        })
+        .collect();
+    let mut sum = 0.0f64;
+    for _ in 0..reps {
+        sum += eval(&cpu, f, &xs).iter().map(|&v| v as f64).sum::<f64>();
+    }
+    println!("{name} over {} values x {reps}: sum {sum:.6e}", xs.len());
     Ok(())
 }

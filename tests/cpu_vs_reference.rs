@@ -347,7 +347,7 @@ fn materials_with_nothing_to_share_take_the_dense_kernels() {
     for (material, l) in cases {
         let ctrl = &material.ctrl;
         let plan = LobePlan::new(ctrl, |k, s| depends_on_x(ctrl, k, s));
-        let dense = Dense::of(&plan).expect("the image's lobes are dense");
+        let dense = Dense::of(&plan, ctrl).expect("the image's lobes are dense");
         assert_eq!(dense.l, l, "{}", material.name);
         let mut s = random_scene(
             &mut rng,
@@ -362,7 +362,7 @@ fn materials_with_nothing_to_share_take_the_dense_kernels() {
         let name = s.material.name.clone();
         let batch = Batch::single(s).unwrap();
         compare(&format!("dense {name}"), &batch);
-        // the plan kernels compute the same sums in another order
+        // the plan kernels compute the same sums in other orders
         let prep = Prepared::new(&batch.scenes()[0]);
         let up = &upstream_for(&batch, 5)[0].pixels;
         for cpu in levels() {
@@ -390,4 +390,35 @@ fn materials_with_nothing_to_share_take_the_dense_kernels() {
             assert_close(&format!("{what} dctrl"), &g, &w, 1e-5 * max_abs(&w), 0.0);
         }
     }
+}
+
+#[test]
+fn backward_of_a_material_sharing_little_runs_every_lobe_densely() {
+    // a shared lobe, a lobe without scale and one without exponent among nine: the
+    // backward pass runs all nine through the dense kernels (x^0 = 1, scale 0 adds 0)
+    let mut rng = Rng::new(22);
+    let mut ctrl = random_material(&mut rng, (0.05, 1.5), (0.3, 300.0)).ctrl;
+    use matedit::material::idx;
+    for j in 0..6 {
+        ctrl[idx(0, 2, 0, j)] = 0.0;
+        ctrl[idx(1, 0, 1, j)] = 0.0;
+        for t in 0..2 {
+            ctrl[idx(2, 1, t, j)] = ctrl[idx(0, 1, t, j)];
+        }
+    }
+    let plan = LobePlan::new(&ctrl, |_, _| true);
+    assert!(Dense::of(&plan, &ctrl).is_none());
+    let dense = Dense::for_backward(&plan, &ctrl).expect("enough exponent groups");
+    assert_eq!((dense.l, dense.lobes.len()), (3, 9));
+    let mut s = random_scene(
+        &mut rng,
+        16,
+        12,
+        16,
+        32,
+        Convention::Equirect,
+        Camera::Orthographic,
+    );
+    s.material = Material::new("sharing little", &ctrl).unwrap();
+    compare("sharing little", &Batch::single(s).unwrap());
 }

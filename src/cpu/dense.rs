@@ -16,8 +16,9 @@ use pulp::{Simd, WithSimd};
 
 use super::backward::TEXEL_SUMS;
 use super::math::{any, exp2, exp2m1_reduced};
-use super::pair::{dot3, x_terms};
+use super::pair::{dot3, underflows, x_terms};
 use super::table::{LobePlan, Px, TexelTable};
+use crate::material::{N_PARAMS, idx};
 
 /// Fields of a block record before the lobes': w (3), h (3), d_pad, L d_omega (3) and the
 /// constant lobes' f (3).
@@ -35,12 +36,26 @@ pub struct Dense {
     pub l: usize,
     /// Per lobe: (k, s), its exponent column and its scale column.
     pub lobes: Vec<((usize, usize), usize, usize)>,
+    /// Per lobe: whether its exponent reaches [`SHARP_EXPONENT`], so that x^m1 is often 0
+    /// in every lane of a pair block and the lobe is worth a test that skips it.
+    pub sharp: Vec<bool>,
 }
+
+/// Exponent groups from which a backward pass runs every lobe through the dense kernels
+/// rather than the plan kernels. Measured on the presets (sphere 128, 64 x 128 sky, the
+/// backward call's time, plan / dense): 6 to 9 groups 1.27x to 2.08x, 2 to 4 groups 0.84x
+/// to 1.21x, 0 and 1 group 0.58x and 0.89x (`examples/cpu_kernels`).
+pub const ALL_LOBES_FROM_GROUPS: usize = 5;
+
+/// An exponent from which a lobe is tested for underflow per pair block: x^m1 = 0 in f32
+/// for x < 2^(-127 / m1), below 0.41 at m1 = 100. Measured on the presets (sphere 128):
+/// without the test the plan kernels were up to 1.3x faster on the sharpest.
+pub const SHARP_EXPONENT: f64 = 100.0;
 
 impl Dense {
     /// The dense shape of `plan`, if it has one: every group one lobe of one channel with
     /// an exponent and a scale, and as many lobes in every channel.
-    pub fn of(plan: &LobePlan) -> Option<Dense> {
+    pub fn of(plan: &LobePlan, ctrl: &[f64; N_PARAMS]) -> Option<Dense> {
         let mut lobes = Vec::new();
         for g in &plan.groups {
             let [lobe] = g.lobes.as_slice() else {
@@ -56,7 +71,38 @@ impl Dense {
         lobes.sort_by_key(|&(ks, _, _)| ks);
         let l = lobes.len() / 3;
         let even = (0..3).all(|k| lobes.iter().filter(|((kk, _), _, _)| *kk == k).count() == l);
-        (l > 0 && even).then_some(Dense { l, lobes })
+        (l > 0 && even).then(|| Dense::new(l, lobes, ctrl))
+    }
+
+    fn new(l: usize, lobes: Vec<((usize, usize), usize, usize)>, ctrl: &[f64; N_PARAMS]) -> Self {
+        let sharp = lobes
+            .iter()
+            .map(|&((k, s), _, _)| (0..6).any(|j| ctrl[idx(k, s, 1, j)] >= SHARP_EXPONENT))
+            .collect();
+        Dense { l, lobes, sharp }
+    }
+
+    /// The dense kernels for the backward pass of `plan` (every lobe): its own lobes when
+    /// it is dense, else every lobe when it has at least [`ALL_LOBES_FROM_GROUPS`] exponent
+    /// groups, else none (the plan kernels).
+    pub fn for_backward(plan: &LobePlan, ctrl: &[f64; N_PARAMS]) -> Option<Dense> {
+        let groups = plan.groups.iter().filter(|g| g.exp_col.is_some()).count();
+        Dense::of(plan, ctrl)
+            .or_else(|| (groups >= ALL_LOBES_FROM_GROUPS).then(|| Dense::all(ctrl)))
+    }
+
+    /// Every lobe of every channel, whatever its curves: exact for any material (a lobe
+    /// with exponent 0 has x^0 = 1, one with scale 0 adds 0 to f and its x^m1 to dLoss/dm0).
+    pub fn all(ctrl: &[f64; N_PARAMS]) -> Dense {
+        let lobes = (0..3)
+            .flat_map(|k| (0..3).map(move |s| ((k, s), (k * 3 + s) * 2 + 1, (k * 3 + s) * 2)))
+            .collect();
+        Dense::new(3, lobes, ctrl)
+    }
+
+    /// The coefficient columns the records read.
+    pub fn columns(&self) -> Vec<usize> {
+        self.lobes.iter().flat_map(|&(_, e, a)| [e, a]).collect()
     }
 
     /// Fields per block record.
@@ -135,18 +181,29 @@ fn pair<S: Simd>(s: S, r: &[S::f32s], n: &[S::f32s; 3], nn_m1: S::f32s) -> Optio
     })
 }
 
-/// Lobe `u`'s x^m1 and 2^(a log2(e) x^m1) - 1 at this pair.
+/// Lobe `u`'s x^m1 and 2^(a log2(e) x^m1) - 1 at this pair; None where a `sharp` lobe's
+/// x^m1 is exactly 0 in every lane above the horizon (it adds 0 to every sum).
 #[inline(always)]
-fn lobe<S: Simd>(s: S, r: &[S::f32s], u: usize, l2: S::f32s) -> (S::f32s, S::f32s) {
+fn lobe<S: Simd>(
+    s: S,
+    r: &[S::f32s],
+    u: usize,
+    g: &Pair<S>,
+    sharp: bool,
+) -> Option<(S::f32s, S::f32s)> {
     let f = HEAD + PER_LOBE * u;
-    let xb = exp2(s, s.mul_f32s(r[f], l2));
+    let t = s.mul_f32s(r[f], g.l2);
+    if sharp && underflows(s, t, g.up) {
+        return None;
+    }
+    let xb = exp2(s, t);
     // |a log2(e) x^m1| <= 40 log2(e) < 126: the scale's bound, x^m1 <= 1
-    (xb, exp2m1_reduced(s, s.mul_f32s(r[f + 1], xb)))
+    Some((xb, exp2m1_reduced(s, s.mul_f32s(r[f + 1], xb))))
 }
 
 /// The image sums of pixels `px` against every block of `records` (see [`Dense::records`]).
 pub struct DenseForward<'a> {
-    pub l: usize,
+    pub dense: &'a Dense,
     pub records: &'a [f32],
     pub px: &'a [Px],
     pub out: &'a mut [[f64; 3]],
@@ -157,7 +214,7 @@ impl WithSimd for DenseForward<'_> {
 
     #[inline(always)]
     fn with_simd<S: Simd>(self, s: S) {
-        match self.l {
+        match self.dense.l {
             1 => self.run::<S, 1>(s),
             2 => self.run::<S, 2>(s),
             _ => self.run::<S, 3>(s),
@@ -172,6 +229,7 @@ impl DenseForward<'_> {
         let recs = S::as_simd_f32s(self.records).0;
         let n_blocks = recs.len() / stride;
         let zero = s.splat_f32s(0.0);
+        let sharp: [bool; 9] = std::array::from_fn(|u| self.dense.sharp.get(u) == Some(&true));
         for g0 in (0..n_blocks).step_by(GROUP_BLOCKS) {
             let group = &recs[g0 * stride..(g0 + GROUP_BLOCKS).min(n_blocks) * stride];
             for (p, out) in self.px.iter().zip(self.out.iter_mut()) {
@@ -185,8 +243,10 @@ impl DenseForward<'_> {
                     for k in 0..3 {
                         let mut f = r[10 + k];
                         for i in 0..L {
-                            let (_, em1) = lobe(s, r, k * L + i, g.l2);
-                            f = s.add_f32s(f, em1);
+                            let u = k * L + i;
+                            if let Some((_, em1)) = lobe(s, r, u, &g, sharp[u]) {
+                                f = s.add_f32s(f, em1);
+                            }
                         }
                         acc[k] = s.mul_add_e_f32s(s.mul_f32s(f, g.c), r[7 + k], acc[k]);
                     }
@@ -235,6 +295,7 @@ impl DenseBackward<'_> {
         let recs = S::as_simd_f32s(self.records).0;
         let n_blocks = recs.len() / stride;
         let zero = s.splat_f32s(0.0);
+        let sharp: [bool; 9] = std::array::from_fn(|u| self.dense.sharp.get(u) == Some(&true));
         let one = s.splat_f32s(1.0);
         // dLoss/dn lane sums per pixel over a group of blocks
         let mut dn_lanes = vec![[zero; 3]; self.px.len()];
@@ -266,7 +327,9 @@ impl DenseBackward<'_> {
                         let mut dx = zero;
                         for i in 0..L {
                             let u = k * L + i;
-                            let (xb, em1) = lobe(s, r, u, g.l2);
+                            let Some((xb, em1)) = lobe(s, r, u, &g, sharp[u]) else {
+                                continue;
+                            };
                             // E x^m1 with E = 2^u = em1 + 1
                             let t1 = s.mul_add_e_f32s(em1, xb, xb);
                             f = s.add_f32s(f, em1);

@@ -63,7 +63,7 @@ impl FastCpu {
             .filter(|&(k, s)| has_scale(ctrl, k, s) && !depends_on_x(ctrl, k, s))
             .collect();
         let table = TexelTable::new(prep, &prep.lit, &plan.columns(), &[], &consts);
-        let dense = Dense::of(&plan).filter(|_| self.dense && !perspective && !jacobian);
+        let dense = Dense::of(&plan, ctrl).filter(|_| self.dense && !perspective && !jacobian);
         let inputs = PassInputs::new(prep, plan);
         let (setup, px) = (inputs.setup(), &inputs.px);
         let mut sums = vec![[0.0f64; 3]; px.len()];
@@ -73,7 +73,7 @@ impl FastCpu {
                 .zip(sums.par_chunks_mut(FORWARD_CHUNK))
                 .for_each(|(px, out)| {
                     self.dispatch(DenseForward {
-                        l: dense.l,
+                        dense: &dense,
                         records: &records,
                         px,
                         out,
@@ -128,9 +128,16 @@ impl FastCpu {
         } else {
             prep.lit.clone()
         };
-        let table = TexelTable::new(prep, &texels, &plan.columns(), &plan.const_columns(), &[]);
-        let dense =
-            Dense::of(&plan).filter(|_| self.dense && !perspective && wanted == Wanted::ALL);
+        // every gradient of an orthographic scene: the dense kernels, with every lobe where
+        // the material shares a little (see `Dense::for_backward`)
+        let dense = (self.dense && !perspective && wanted == Wanted::ALL)
+            .then(|| Dense::for_backward(&plan, ctrl))
+            .flatten();
+        let columns = match &dense {
+            Some(d) => d.columns(),
+            None => plan.columns(),
+        };
+        let table = TexelTable::new(prep, &texels, &columns, &plan.const_columns(), &[]);
         let records = dense
             .as_ref()
             .map(|d| d.records(&table, self.lanes()))
