@@ -23,11 +23,9 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import statistics
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
@@ -35,6 +33,9 @@ import torch
 
 import matedit
 import matedit.torch as mt
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from train_step import median_time  # noqa: E402  (beside this file)
 
 PEER = r"""
 import os, sys, time, json
@@ -76,16 +77,6 @@ def batch_inputs(b: int, size: int, hl: int, wl: int):
     return normals, env, ctrl, upstream
 
 
-def median_time(f, reps):
-    f()
-    ts = []
-    for _ in range(reps):
-        t0 = time.perf_counter()
-        f()
-        ts.append(time.perf_counter() - t0)
-    return statistics.median(ts)
-
-
 def main() -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("--batch", type=int, default=32)
@@ -111,7 +102,7 @@ def main() -> int:
         r.render(n, e, c)
         return r.backward(n, e, c, g)
 
-    results["renderer"] = median_time(renderer, args.reps)
+    results["renderer"] = median_time(renderer, args.reps)[0]
     tn, te, tc, tg = (torch.from_numpy(a) for a in (n, e, c.astype(np.float32), g))
 
     def step():
@@ -119,7 +110,7 @@ def main() -> int:
         (mt.render(nn, ee, cc, device="cpu") * tg).sum().backward()
         return nn.grad, ee.grad, cc.grad
 
-    results["torch"] = median_time(step, args.reps)
+    results["torch"] = median_time(step, args.reps)[0]
     ours = r.render(n, e, c)
     peer_dir = Path(args.peers)
     if (peer_dir / "drjit_layer" / "layer.py").exists():

@@ -181,24 +181,21 @@ fn pair<S: Simd>(s: S, r: &[S::f32s], n: &[S::f32s; 3], nn_m1: S::f32s) -> Optio
     })
 }
 
-/// Lobe `u`'s x^m1 and 2^(a log2(e) x^m1) - 1 at this pair; None where a `sharp` lobe's
-/// x^m1 is exactly 0 in every lane above the horizon (it adds 0 to every sum).
+/// Lobe `u`'s exponent of x^m1 = 2^t at this pair: t = m1 log2 x.
 #[inline(always)]
-fn lobe<S: Simd>(
-    s: S,
-    r: &[S::f32s],
-    u: usize,
-    g: &Pair<S>,
-    sharp: bool,
-) -> Option<(S::f32s, S::f32s)> {
-    let f = HEAD + PER_LOBE * u;
-    let t = s.mul_f32s(r[f], g.l2);
-    if sharp && underflows(s, t, g.up) {
-        return None;
-    }
+fn lobe_t<S: Simd>(s: S, r: &[S::f32s], u: usize, l2: S::f32s) -> S::f32s {
+    s.mul_f32s(r[HEAD + PER_LOBE * u], l2)
+}
+
+/// Lobe `u`'s x^m1 = 2^t and 2^(a log2(e) x^m1) - 1.
+#[inline(always)]
+fn lobe<S: Simd>(s: S, r: &[S::f32s], u: usize, t: S::f32s) -> (S::f32s, S::f32s) {
     let xb = exp2(s, t);
     // |a log2(e) x^m1| <= 40 log2(e) < 126: the scale's bound, x^m1 <= 1
-    Some((xb, exp2m1_reduced(s, s.mul_f32s(r[f + 1], xb))))
+    (
+        xb,
+        exp2m1_reduced(s, s.mul_f32s(r[HEAD + PER_LOBE * u + 1], xb)),
+    )
 }
 
 /// The image sums of pixels `px` against every block of `records` (see [`Dense::records`]).
@@ -214,17 +211,21 @@ impl WithSimd for DenseForward<'_> {
 
     #[inline(always)]
     fn with_simd<S: Simd>(self, s: S) {
-        match self.dense.l {
-            1 => self.run::<S, 1>(s),
-            2 => self.run::<S, 2>(s),
-            _ => self.run::<S, 3>(s),
+        // lobes without a sharp one get kernels without the underflow test
+        match (self.dense.l, self.dense.sharp.contains(&true)) {
+            (1, false) => self.run::<S, 1, false>(s),
+            (2, false) => self.run::<S, 2, false>(s),
+            (_, false) => self.run::<S, 3, false>(s),
+            (1, true) => self.run::<S, 1, true>(s),
+            (2, true) => self.run::<S, 2, true>(s),
+            (_, true) => self.run::<S, 3, true>(s),
         }
     }
 }
 
 impl DenseForward<'_> {
     #[inline(always)]
-    fn run<S: Simd, const L: usize>(self, s: S) {
+    fn run<S: Simd, const L: usize, const SKIP: bool>(self, s: S) {
         let stride = HEAD + PER_LOBE * 3 * L;
         let recs = S::as_simd_f32s(self.records).0;
         let n_blocks = recs.len() / stride;
@@ -244,9 +245,12 @@ impl DenseForward<'_> {
                         let mut f = r[10 + k];
                         for i in 0..L {
                             let u = k * L + i;
-                            if let Some((_, em1)) = lobe(s, r, u, &g, sharp[u]) {
-                                f = s.add_f32s(f, em1);
+                            let t = lobe_t(s, r, u, g.l2);
+                            // a sharp lobe whose x^m1 is 0 in every lit lane adds 0
+                            if SKIP && sharp[u] && underflows(s, t, g.up) {
+                                continue;
                             }
+                            f = s.add_f32s(f, lobe(s, r, u, t).1);
                         }
                         acc[k] = s.mul_add_e_f32s(s.mul_f32s(f, g.c), r[7 + k], acc[k]);
                     }
@@ -279,17 +283,21 @@ impl WithSimd for DenseBackward<'_> {
 
     #[inline(always)]
     fn with_simd<S: Simd>(self, s: S) {
-        match self.dense.l {
-            1 => self.run::<S, 1>(s),
-            2 => self.run::<S, 2>(s),
-            _ => self.run::<S, 3>(s),
+        // lobes without a sharp one get kernels without the underflow test
+        match (self.dense.l, self.dense.sharp.contains(&true)) {
+            (1, false) => self.run::<S, 1, false>(s),
+            (2, false) => self.run::<S, 2, false>(s),
+            (_, false) => self.run::<S, 3, false>(s),
+            (1, true) => self.run::<S, 1, true>(s),
+            (2, true) => self.run::<S, 2, true>(s),
+            (_, true) => self.run::<S, 3, true>(s),
         }
     }
 }
 
 impl DenseBackward<'_> {
     #[inline(always)]
-    fn run<S: Simd, const L: usize>(mut self, s: S) {
+    fn run<S: Simd, const L: usize, const SKIP: bool>(mut self, s: S) {
         let lanes = S::F32_LANES;
         let stride = HEAD + PER_LOBE * 3 * L;
         let recs = S::as_simd_f32s(self.records).0;
@@ -327,9 +335,11 @@ impl DenseBackward<'_> {
                         let mut dx = zero;
                         for i in 0..L {
                             let u = k * L + i;
-                            let Some((xb, em1)) = lobe(s, r, u, &g, sharp[u]) else {
+                            let t = lobe_t(s, r, u, g.l2);
+                            if SKIP && sharp[u] && underflows(s, t, g.up) {
                                 continue;
-                            };
+                            }
+                            let (xb, em1) = lobe(s, r, u, t);
                             // E x^m1 with E = 2^u = em1 + 1
                             let t1 = s.mul_add_e_f32s(em1, xb, xb);
                             f = s.add_f32s(f, em1);
