@@ -157,7 +157,7 @@ struct Pair<S: Simd> {
     /// max(0, n.w).
     c: S::f32s,
     up: S::m32s,
-    /// 1 / x (backward only).
+    /// x = max(0, h.n).
     x: S::f32s,
     lnx: S::f32s,
     l2: S::f32s,
@@ -198,6 +198,25 @@ fn lobe<S: Simd>(s: S, r: &[S::f32s], u: usize, t: S::f32s) -> (S::f32s, S::f32s
     )
 }
 
+/// A dense kernel, instantiated per lobe count and underflow test.
+trait Kernel: Sized {
+    fn dense(&self) -> &Dense;
+    fn run<S: Simd, const L: usize, const SKIP: bool>(self, s: S);
+}
+
+/// Runs `k` with `L` lobes per channel, with the underflow test where a lobe is sharp.
+#[inline(always)]
+fn run<K: Kernel, S: Simd>(k: K, s: S) {
+    match (k.dense().l, k.dense().sharp.contains(&true)) {
+        (1, false) => k.run::<S, 1, false>(s),
+        (2, false) => k.run::<S, 2, false>(s),
+        (_, false) => k.run::<S, 3, false>(s),
+        (1, true) => k.run::<S, 1, true>(s),
+        (2, true) => k.run::<S, 2, true>(s),
+        (_, true) => k.run::<S, 3, true>(s),
+    }
+}
+
 /// The image sums of pixels `px` against every block of `records` (see [`Dense::records`]).
 pub struct DenseForward<'a> {
     pub dense: &'a Dense,
@@ -211,19 +230,15 @@ impl WithSimd for DenseForward<'_> {
 
     #[inline(always)]
     fn with_simd<S: Simd>(self, s: S) {
-        // lobes without a sharp one get kernels without the underflow test
-        match (self.dense.l, self.dense.sharp.contains(&true)) {
-            (1, false) => self.run::<S, 1, false>(s),
-            (2, false) => self.run::<S, 2, false>(s),
-            (_, false) => self.run::<S, 3, false>(s),
-            (1, true) => self.run::<S, 1, true>(s),
-            (2, true) => self.run::<S, 2, true>(s),
-            (_, true) => self.run::<S, 3, true>(s),
-        }
+        run(self, s)
     }
 }
 
-impl DenseForward<'_> {
+impl Kernel for DenseForward<'_> {
+    fn dense(&self) -> &Dense {
+        self.dense
+    }
+
     #[inline(always)]
     fn run<S: Simd, const L: usize, const SKIP: bool>(self, s: S) {
         let stride = HEAD + PER_LOBE * 3 * L;
@@ -283,19 +298,15 @@ impl WithSimd for DenseBackward<'_> {
 
     #[inline(always)]
     fn with_simd<S: Simd>(self, s: S) {
-        // lobes without a sharp one get kernels without the underflow test
-        match (self.dense.l, self.dense.sharp.contains(&true)) {
-            (1, false) => self.run::<S, 1, false>(s),
-            (2, false) => self.run::<S, 2, false>(s),
-            (_, false) => self.run::<S, 3, false>(s),
-            (1, true) => self.run::<S, 1, true>(s),
-            (2, true) => self.run::<S, 2, true>(s),
-            (_, true) => self.run::<S, 3, true>(s),
-        }
+        run(self, s)
     }
 }
 
-impl DenseBackward<'_> {
+impl Kernel for DenseBackward<'_> {
+    fn dense(&self) -> &Dense {
+        self.dense
+    }
+
     #[inline(always)]
     fn run<S: Simd, const L: usize, const SKIP: bool>(mut self, s: S) {
         let lanes = S::F32_LANES;
@@ -369,7 +380,9 @@ impl DenseBackward<'_> {
             }
         }
     }
+}
 
+impl DenseBackward<'_> {
     /// Adds block `r`'s lane sums to the texel sums of its texels (from `first`): dLoss/dL
     /// / d_omega, and dLoss/dm0, dLoss/dm1 at the texel's theta_d with the per-texel factors
     /// L d_omega (both) and a ln 2 (dm1) applied here.
