@@ -64,8 +64,10 @@ use serde_json::{Value, json};
 
 const USAGE: &str = "\
 cargo bench --bench layer -- [OPTIONS]
-  --scenes LIST      of sphere128, sphere256, bumpy256, sphere1024 [all but sphere1024]
-  --materials LIST   preset names [plastic-red,clay]
+  --scenes LIST      of sphere128, sphere256, bumpy256, bumpy320x240, sphere1024
+                     [sphere128,sphere256,bumpy256]
+  --materials LIST   preset names or random-SEED (nine lobes, each its own scale and
+                     exponent curve, exponents 0.3-80) [plastic-red,clay,random-1]
   --paths LIST       of cpu, gpu, reference [cpu,reference]; the reference's results are
                      computed once per scene and material whatever this says
   --reps N           timed runs per path and pass, after a warm-up [5]
@@ -85,7 +87,13 @@ cargo bench --bench layer -- [OPTIONS]
 
 const SCENES: [&str; 3] = ["sphere128", "sphere256", "bumpy256"];
 /// The scenes `--scenes` takes: the default ones and a large one for the GPU path.
-const KNOWN: [&str; 4] = ["sphere128", "sphere256", "bumpy256", "sphere1024"];
+const KNOWN: [&str; 5] = [
+    "sphere128",
+    "sphere256",
+    "bumpy256",
+    "bumpy320x240",
+    "sphere1024",
+];
 
 struct Opts {
     scenes: Vec<String>,
@@ -107,7 +115,7 @@ struct Opts {
 fn parse_args() -> Result<Opts, String> {
     let mut o = Opts {
         scenes: SCENES.iter().map(|s| s.to_string()).collect(),
-        materials: list("plastic-red,clay"),
+        materials: list("plastic-red,clay,random-1"),
         paths: list("cpu,reference"),
         reps: 5,
         ref_reps: 0,
@@ -198,6 +206,7 @@ fn normals_of(scene: &str) -> NormalMap {
         "sphere128" => NormalMap::sphere(128),
         "sphere256" => NormalMap::sphere(256),
         "sphere1024" => NormalMap::sphere(1024),
+        "bumpy320x240" => NormalMap::bumpy(320, 240, BUMPY_SEED),
         _ => NormalMap::bumpy(256, 256, BUMPY_SEED),
     }
 }

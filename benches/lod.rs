@@ -44,8 +44,10 @@ const USAGE: &str = "\
 cargo bench --bench lod -- [OPTIONS]
   --scenes LIST     of sphere128, sphere256, sphere512, bumpy512 [all]
   --envs LIST       env maps: names of ../shared/data/envmaps/*.exr (forest), .exr/.npy
-                    paths, or sky (the built-in sky) [every map there, else sky]
-  --materials LIST  preset names [clay,plastic-red,chrome-ish]
+                    paths, sky (the built-in sky) or sun (the built-in sky, its sun ten
+                    times brighter: a hard sun) [every map there, else sky]
+  --materials LIST  preset names or random-SEED (Material::random: nine lobes, each its
+                    own scale and exponent curve) [clay,plastic-red,chrome-ish]
   --methods LIST    lod methods (exact, envF, keepK, tableR joined by '+'; exact is always
                     run: it is what the errors are measured against) [exact,env2,env4,env8,
                     env4+keep16,table32,table64,table128,table256,table128+env2+keep16,
@@ -149,7 +151,13 @@ fn parse_args() -> Result<Opts, String> {
         }
     }
     o.peers.retain(|p| p != "none");
-    common::check_names(&o.scenes, &SCENES, &o.materials)?;
+    common::check_names(&o.scenes, &SCENES, &[])?;
+    if let Some(m) = o.materials.iter().find(|m| material(m).is_none()) {
+        return Err(format!(
+            "unknown material '{m}': expected random-SEED or one of {:?}",
+            matedit::presets::names()
+        ));
+    }
     // the exact layer first: every error is measured against it
     o.methods.push(Method::EXACT);
     for m in &methods {
@@ -172,6 +180,46 @@ fn normals_of(scene: &str) -> NormalMap {
         _ => NormalMap::bumpy(512, 512, BUMPY_SEED),
     }
 }
+
+/// A preset by name, or `random-SEED`: [`Material::random`], nine lobes with nothing to
+/// share.
+fn material(name: &str) -> Option<Material> {
+    match name.strip_prefix("random-").map(str::parse::<u64>) {
+        Some(Ok(seed)) => Some(Material::random(seed)),
+        _ => matedit::presets::lookup(name),
+    }
+}
+
+/// The materials of `names` (checked), each printed with its description.
+fn materials(names: &[String]) -> Vec<Material> {
+    for n in names {
+        let desc = match matedit::presets::all()
+            .iter()
+            .find(|p| p.name == n.as_str())
+        {
+            Some(p) => p.description.as_str(),
+            None => "nine lobes, each its own scale (0.02-1.2) and exponent (0.3-80) curve",
+        };
+        println!("material {n}: {desc}");
+    }
+    names.iter().filter_map(|n| material(n)).collect()
+}
+
+/// The built-in sky with its sun (the texels above [`SUN_TEXEL`]) ten times brighter: a
+/// hard sun, most of the energy in a few texels.
+fn hard_sun((h, w): (usize, usize)) -> (EnvMap, String) {
+    let mut env = matedit::defaults::procedural_env(h, w, matedit::Convention::Equirect);
+    for t in &mut env.texels {
+        if t.iter().any(|&v| v > SUN_TEXEL) {
+            *t = t.map(|v| v * 10.0);
+        }
+    }
+    (env, format!("built-in sky, its sun 10x, {h}x{w}"))
+}
+
+/// Radiance above which a texel of the built-in sky is the sun's (the sky and its glow
+/// stay under 3).
+const SUN_TEXEL: f32 = 20.0;
 
 /// An env map of the run: its name, the map and what was measured of it.
 struct Env {
@@ -225,7 +273,7 @@ fn load_envs(names: &[String]) -> Vec<Env> {
         names
             .iter()
             .map(|n| {
-                (n != "sky").then(|| {
+                (n != "sky" && n != "sun").then(|| {
                     files
                         .iter()
                         .find(|f| f.file_stem().is_some_and(|s| s == n.as_str()))
@@ -240,8 +288,13 @@ fn load_envs(names: &[String]) -> Vec<Env> {
         wanted.push(None);
     }
     let mut envs = Vec::new();
+    let mut builtin = names.iter().filter(|n| *n == "sky" || *n == "sun");
     for w in wanted {
         let (name, env, full, desc) = match w {
+            None if builtin.next().is_some_and(|n| n == "sun") => {
+                let (env, desc) = hard_sun(common::ENV_SIZE);
+                ("sun".to_string(), env, None, desc)
+            }
             None => {
                 let (env, desc) = common::builtin_sky(common::ENV_SIZE);
                 ("sky".to_string(), env, None, desc)
@@ -1289,7 +1342,7 @@ fn main() {
     };
     println!("backend: {}", cpu.describe());
     let envs = load_envs(&opts.envs);
-    let materials = common::materials(&opts.materials);
+    let materials = materials(&opts.materials);
     let peers = common::runnable_peers(&opts.peers, opts.peer_reps);
     let mut notes = Vec::new();
     let ref_check = match envs.first() {

@@ -65,6 +65,28 @@ impl Material {
         Material::new(name, &ctrl)
     }
 
+    /// A seeded random material with nothing to share: every lobe of every channel has its
+    /// own scale curve (around a level drawn from [0.02, 1.2]) and its own exponent curve
+    /// (around a level drawn log-uniformly from [0.3, 80]), each control point within 30%
+    /// of its curve's level and inside those ranges. What a network or a fit produces, and
+    /// what the benchmarks call `random-SEED`.
+    pub fn random(seed: u64) -> Self {
+        let mut rng = crate::splitmix::SplitMix(seed);
+        let mut u = |lo: f64, hi: f64| lo + (hi - lo) * rng.uniform();
+        let mut ctrl = [0.0; N_PARAMS];
+        for k in 0..N_CHANNELS {
+            for s in 0..N_LOBES {
+                let scale = u(0.02, 1.2);
+                let exponent = (u(0.3f64.ln(), 80f64.ln())).exp();
+                for j in 0..N_CTRL_POINTS {
+                    ctrl[idx(k, s, 0, j)] = (scale * u(0.7, 1.3)).clamp(0.02, 1.2);
+                    ctrl[idx(k, s, 1, j)] = (exponent * u(0.7, 1.3)).clamp(0.3, 80.0);
+                }
+            }
+        }
+        Material::new(format!("random-{seed}"), &ctrl).expect("within the valid ranges")
+    }
+
     /// Checks that every control point is finite, scales are within +-[`MAX_ABS_SCALE`]
     /// and exponents within [0, [`MAX_EXPONENT`]].
     pub fn validate(&self) -> Result<()> {

@@ -12,6 +12,8 @@ use common::{
     Rng, Truth, assert_close, flat32, flat64, max_abs, random_material, random_scene, scenes,
     upstream_for,
 };
+use matedit::cpu::dense::Dense;
+use matedit::cpu::table::{LobePlan, depends_on_x};
 use matedit::cpu::{FastCpu, SimdLevel};
 use matedit::prepare::Prepared;
 use matedit::{Batch, Camera, Convention, EnvMap, Material, NormalMap, Scene, reference};
@@ -324,4 +326,99 @@ fn normal_jacobians_match_the_reference_backward() {
             assert_close(&what, &g, &w, GRAD_TOL * max_abs(&w), 0.0);
         }
     }
+}
+
+#[test]
+fn materials_with_nothing_to_share_take_the_dense_kernels() {
+    // every lobe its own curves (three per channel; two where one lobe per channel has no
+    // scale, which the image leaves out), sharp and negative lobes among them
+    let mut rng = Rng::new(21);
+    let mut two = random_material(&mut rng, (0.05, 1.5), (0.3, 80.0)).ctrl;
+    for k in 0..3 {
+        for j in 0..6 {
+            two[matedit::material::idx(k, 1, 0, j)] = 0.0;
+        }
+    }
+    let cases = [
+        (Material::random(3), 3),
+        (random_material(&mut rng, (-1.0, 5.0), (0.3, 1e4)), 3),
+        (Material::new("two lobes", &two).unwrap(), 2),
+    ];
+    for (material, l) in cases {
+        let ctrl = &material.ctrl;
+        let plan = LobePlan::new(ctrl, |k, s| depends_on_x(ctrl, k, s));
+        let dense = Dense::of(&plan, ctrl).expect("the image's lobes are dense");
+        assert_eq!(dense.l, l, "{}", material.name);
+        let mut s = random_scene(
+            &mut rng,
+            16,
+            12,
+            16,
+            32,
+            Convention::Equirect,
+            Camera::Orthographic,
+        );
+        s.material = material;
+        let name = s.material.name.clone();
+        let batch = Batch::single(s).unwrap();
+        compare(&format!("dense {name}"), &batch);
+        // the plan kernels compute the same sums in other orders
+        let prep = Prepared::new(&batch.scenes()[0]);
+        let up = &upstream_for(&batch, 5)[0].pixels;
+        for cpu in levels() {
+            let plan = cpu.plan_kernels_only();
+            let what = format!(
+                "dense {name} {} against the plan kernels",
+                cpu.level().name()
+            );
+            let want = flat32(&plan.forward(&prep));
+            let tol = 1e-6 * max_abs(&want);
+            assert_close(&what, &flat32(&cpu.forward(&prep)), &want, tol, 0.0);
+            let (got, want) = (cpu.backward(&prep, up), plan.backward(&prep, up));
+            for (part, g, w) in [
+                ("dL", &got.d_env, &want.d_env),
+                ("dn", &got.d_normals, &want.d_normals),
+            ] {
+                let w = flat32(w);
+                let tol = 1e-5 * max_abs(&w);
+                assert_close(&format!("{what} {part}"), &flat32(g), &w, tol, 0.0);
+            }
+            let (g, w): (Vec<f64>, Vec<f64>) = (
+                got.d_ctrl.iter().map(|&v| v as f64).collect(),
+                want.d_ctrl.iter().map(|&v| v as f64).collect(),
+            );
+            assert_close(&format!("{what} dctrl"), &g, &w, 1e-5 * max_abs(&w), 0.0);
+        }
+    }
+}
+
+#[test]
+fn backward_of_a_material_sharing_little_runs_every_lobe_densely() {
+    // a shared lobe, a lobe without scale and one without exponent among nine: the
+    // backward pass runs all nine through the dense kernels (x^0 = 1, scale 0 adds 0)
+    let mut rng = Rng::new(22);
+    let mut ctrl = random_material(&mut rng, (0.05, 1.5), (0.3, 300.0)).ctrl;
+    use matedit::material::idx;
+    for j in 0..6 {
+        ctrl[idx(0, 2, 0, j)] = 0.0;
+        ctrl[idx(1, 0, 1, j)] = 0.0;
+        for t in 0..2 {
+            ctrl[idx(2, 1, t, j)] = ctrl[idx(0, 1, t, j)];
+        }
+    }
+    let plan = LobePlan::new(&ctrl, |_, _| true);
+    assert!(Dense::of(&plan, &ctrl).is_none());
+    let dense = Dense::for_backward(&plan, &ctrl).expect("enough exponent groups");
+    assert_eq!((dense.l, dense.lobes.len()), (3, 9));
+    let mut s = random_scene(
+        &mut rng,
+        16,
+        12,
+        16,
+        32,
+        Convention::Equirect,
+        Camera::Orthographic,
+    );
+    s.material = Material::new("sharing little", &ctrl).unwrap();
+    compare("sharing little", &Batch::single(s).unwrap());
 }

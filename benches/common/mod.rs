@@ -46,9 +46,9 @@ pub fn check_names(scenes: &[String], known: &[&str], materials: &[String]) -> R
         }
     }
     for m in materials {
-        if matedit::presets::lookup(m).is_none() {
+        if material(m).is_none() {
             return Err(format!(
-                "unknown material '{m}': expected one of {:?}",
+                "unknown material '{m}': expected random-SEED or one of {:?}",
                 matedit::presets::names()
             ));
         }
@@ -65,8 +65,17 @@ pub fn materials(names: &[String]) -> Vec<matedit::Material> {
     }
     names
         .iter()
-        .map(|m| matedit::presets::lookup(m).expect("checked"))
+        .map(|m| material(m).expect("checked"))
         .collect()
+}
+
+/// A preset by name, or `random-SEED`: [`matedit::Material::random`], nine lobes with
+/// nothing to share.
+pub fn material(name: &str) -> Option<matedit::Material> {
+    match name.strip_prefix("random-").map(str::parse::<u64>) {
+        Some(Ok(seed)) => Some(matedit::Material::random(seed)),
+        _ => matedit::presets::lookup(name),
+    }
 }
 
 /// target/ of this build: the command-line binary lives in target/PROFILE/.

@@ -32,10 +32,12 @@ os.environ.setdefault("XDG_RUNTIME_DIR", tempfile.gettempdir())
 
 from ._matedit import (
     Renderer,
+    bumpy,
     load_env,
     load_normals,
     preset,
     presets,
+    random_material,
     sky,
     sphere,
     synth,
@@ -53,6 +55,8 @@ __all__ = [
     "load_env",
     "load_normals",
     "sphere",
+    "bumpy",
+    "random_material",
     "sky",
     "synth",
     "synth_check",

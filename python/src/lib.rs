@@ -450,6 +450,35 @@ fn sphere(py: Python<'_>, n: usize) -> PyResult<Bound<'_, PyArrayDyn<f32>>> {
     stack(py, false, n, n, vec![&s.normals[..]])
 }
 
+/// The normals of a bumpy surface of `width` x `height` (a seeded height field, every
+/// pixel foreground), as the benchmarks use.
+#[pyfunction]
+#[pyo3(signature = (width, height, seed = 1))]
+fn bumpy(
+    py: Python<'_>,
+    width: usize,
+    height: usize,
+    seed: u64,
+) -> PyResult<Bound<'_, PyArrayDyn<f32>>> {
+    if width == 0 || height == 0 || width > 8192 || height > 8192 {
+        return Err(invalid(format!(
+            "bumpy: size {width}x{height} is outside 1..=8192 x 1..=8192"
+        )));
+    }
+    let s = NormalMap::bumpy(width, height, seed);
+    stack(py, false, height, width, vec![&s.normals[..]])
+}
+
+/// A seeded random material with nothing to share (108 float64 control points): every
+/// lobe of every channel its own scale curve (0.02-1.2) and exponent curve (0.3-80).
+#[pyfunction]
+fn random_material(py: Python<'_>, seed: u64) -> PyResult<Bound<'_, PyArrayDyn<f64>>> {
+    let m = matedit::Material::random(seed);
+    Array::from_shape_vec(IxDyn(&[matedit::N_PARAMS]), m.ctrl.to_vec())
+        .map(|a| a.into_pyarray(py))
+        .map_err(|e| PyRuntimeError::new_err(e.to_string()))
+}
+
 /// The built-in procedural sky with its sun, `height` x `width`.
 #[pyfunction]
 #[pyo3(signature = (height = 64, width = 128, convention = "equirect"))]
@@ -577,6 +606,8 @@ fn _matedit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(load_env, m)?)?;
     m.add_function(wrap_pyfunction!(load_normals, m)?)?;
     m.add_function(wrap_pyfunction!(sphere, m)?)?;
+    m.add_function(wrap_pyfunction!(bumpy, m)?)?;
+    m.add_function(wrap_pyfunction!(random_material, m)?)?;
     m.add_function(wrap_pyfunction!(sky, m)?)?;
     m.add_function(wrap_pyfunction!(synth, m)?)?;
     m.add_function(wrap_pyfunction!(synth_check, m)?)?;

@@ -122,11 +122,20 @@ pub fn exp2m1<S: Simd>(s: S, u: S::f32s) -> S::f32s {
     if !any(s, big) {
         return s.mul_f32s(u, horner(s, u, &EXP2M1_Q));
     }
+    exp2m1_reduced(
+        s,
+        s.min_f32s(s.max_f32s(u, s.splat_f32s(-126.0)), s.splat_f32s(126.0)),
+    )
+}
+
+/// 2^u - 1 for |u| <= 126 through the reduction u = k + f, without a branch: as
+/// [`exp2m1`] where the caller knows the range (bitwise the same result).
+#[inline(always)]
+pub fn exp2m1_reduced<S: Simd>(s: S, u: S::f32s) -> S::f32s {
     #[cfg(target_arch = "x86_64")]
     if let Some(v) = v4::get(s) {
         return v4::exp2m1_reduced(s, v, u);
     }
-    let u = s.min_f32s(s.max_f32s(u, s.splat_f32s(-126.0)), s.splat_f32s(126.0));
     let z = s.add_f32s(u, s.splat_f32s(MAGIC));
     let f = s.sub_f32s(u, s.sub_f32s(z, s.splat_f32s(MAGIC)));
     let p = s.mul_f32s(f, horner(s, f, &EXP2M1_Q));
@@ -254,11 +263,11 @@ mod v4 {
         lanes::<S>(a._mm512_maskz_scalef_ps(live, p, k))
     }
 
-    /// 2^u - 1 through the reduction u = k + f.
+    /// 2^u - 1 through the reduction u = k + f, for |u| <= 126.
     #[inline(always)]
     pub fn exp2m1_reduced<S: Simd>(s: S, v: V4, u: S::f32s) -> S::f32s {
         let a = v.avx512f;
-        let u5 = a._mm512_min_ps(m512::<S>(u), a._mm512_set1_ps(126.0));
+        let u5 = m512::<S>(u);
         let k = a._mm512_roundscale_ps::<ROUND>(u5);
         let f = lanes::<S>(a._mm512_sub_ps(u5, k));
         let p = s.mul_f32s(f, horner(s, f, &EXP2M1_Q));

@@ -87,7 +87,7 @@ pub fn dpow<S: Simd>(s: S, m1: S::f32s, xb: S::f32s, inv_x: S::f32s, pos: S::m32
 }
 
 #[inline(always)]
-fn dot3<S: Simd>(s: S, a: &[S::f32s; 3], b: &[S::f32s; 3]) -> S::f32s {
+pub fn dot3<S: Simd>(s: S, a: &[S::f32s; 3], b: &[S::f32s; 3]) -> S::f32s {
     s.mul_add_e_f32s(
         a[0],
         b[0],
@@ -212,6 +212,47 @@ fn basis<S: Simd>(s: S, theta_d: S::f32s) -> [S::f32s; N_CTRL_POINTS] {
     [b0, b1, b2, b3, b4, b5]
 }
 
+/// x = max(0, h.n) and its logarithms.
+pub struct XTerms<S: Simd> {
+    /// x = max(0, h.n).
+    pub x: S::f32s,
+    /// Lanes where x > 0.
+    pub pos: S::m32s,
+    /// ln x where x > 0, else 0 (x^m1 ln x is taken as 0 at x = 0).
+    pub lnx: S::f32s,
+    /// log2 x where x > 0, else NEG_BIG.
+    pub l2: S::f32s,
+}
+
+/// x, ln x and log2 x of half vector `h` (unit, or 0 with `d_pad` = 1 where undefined) and
+/// normal `n` (|n|^2 - 1 = `nn_m1`).
+#[inline(always)]
+pub fn x_terms<S: Simd>(
+    s: S,
+    h: &[S::f32s; 3],
+    n: &[S::f32s; 3],
+    nn_m1: S::f32s,
+    d_pad: S::f32s,
+) -> XTerms<S> {
+    let zero = s.splat_f32s(0.0);
+    // 1 - x = (|h - n|^2 - (|n|^2 - 1)) / 2 for unit h: no cancellation near x = 1
+    let hn = [0, 1, 2].map(|a| s.sub_f32s(h[a], n[a]));
+    let d = s.mul_add_e_f32s(
+        s.sub_f32s(dot3(s, &hn, &hn), nn_m1),
+        s.splat_f32s(0.5),
+        d_pad,
+    );
+    let x = s.max_f32s(s.sub_f32s(s.splat_f32s(1.0), d), zero);
+    let pos = s.greater_than_f32s(x, zero);
+    let lnx = s.select_f32s(pos, ln_1m(s, s.max_f32s(x, s.splat_f32s(1e-30)), d), zero);
+    let l2 = s.select_f32s(
+        pos,
+        s.mul_f32s(lnx, s.splat_f32s(std::f32::consts::LOG2_E)),
+        s.splat_f32s(NEG_BIG),
+    );
+    XTerms { x, pos, lnx, l2 }
+}
+
 /// The geometric terms of pixel `p` against texel block `b`, or None when every texel of
 /// the block is below the pixel's horizon. `P`: a perspective camera.
 #[inline(always)]
@@ -243,21 +284,7 @@ pub fn geo<S: Simd, const P: bool>(s: S, cols: &Cols<'_, S>, p: &Px, b: usize) -
             [zero; N_CTRL_POINTS],
         )
     };
-    // 1 - x = (|h - n|^2 - (|n|^2 - 1)) / 2 for unit h: no cancellation near x = 1
-    let hn = [0, 1, 2].map(|a| s.sub_f32s(h[a], n[a]));
-    let d = s.mul_add_e_f32s(
-        s.sub_f32s(dot3(s, &hn, &hn), s.splat_f32s(p.nn_m1)),
-        s.splat_f32s(0.5),
-        d_pad,
-    );
-    let x = s.max_f32s(s.sub_f32s(s.splat_f32s(1.0), d), zero);
-    let pos = s.greater_than_f32s(x, zero);
-    let lnx = s.select_f32s(pos, ln_1m(s, s.max_f32s(x, s.splat_f32s(1e-30)), d), zero);
-    let l2 = s.select_f32s(
-        pos,
-        s.mul_f32s(lnx, s.splat_f32s(std::f32::consts::LOG2_E)),
-        s.splat_f32s(NEG_BIG),
-    );
+    let XTerms { x, pos, lnx, l2 } = x_terms(s, &h, &n, s.splat_f32s(p.nn_m1), d_pad);
     Some(Geo {
         c,
         up,

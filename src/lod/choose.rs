@@ -342,6 +342,19 @@ impl<'a> Trial<'a> {
         })
     }
 
+    /// The estimated error of `method`'s image alone, on the per-pixel sample.
+    fn image_error(&self, method: &Method) -> Result<f64> {
+        let truth = &self.pixels;
+        let plan = Plan::new(
+            self.backend,
+            &truth.sample,
+            &self.scene.env,
+            method,
+            &self.full.pixels,
+        )?;
+        Ok(rel(&plan.forward(self.backend)?.pixels, &truth.image.pixels))
+    }
+
     /// The estimate of `method`; the gradients' only if the image's is within `tol`.
     fn estimate(&self, method: &Method, tol: f64) -> Result<Estimate> {
         let truth = if method.table.is_some() {
@@ -511,10 +524,12 @@ pub(crate) fn choose_plan<'a>(
         for ((f, k), blocks, kept) in table_lights {
             let e_light = match light_error.get(&(f, k)) {
                 Some(&e) => e,
+                // texels kept beside a full-resolution map are the map itself
+                None if f == 1 => 0.0,
                 None if s_pixels * (blocks + kept) > budget => continue,
                 None => {
                     budget -= s_pixels * (blocks + kept);
-                    let e = trial.estimate(&method(f, k, None), 0.0)?.image;
+                    let e = trial.image_error(&method(f, k, None))?;
                     light_error.insert((f, k), e);
                     e
                 }
