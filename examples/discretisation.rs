@@ -90,9 +90,20 @@ fn run() -> Result<(), String> {
             let (ref4, t4) = timed(&renderer, &batch_of(&maps[1])?, &exact);
             let (ref16, _) = timed(&renderer, &batch_of(&maps[2])?, &exact);
             let base = batch_of(&maps[0])?;
+            // the sub-texels' radiance from the 16x map (as the CLI does), or constant
+            let detail = [Some(maps[2].clone())];
             let light_run = |l: Light| -> Run {
+                let detail = detail.clone();
                 Box::new(move |r, b| {
-                    supersample::render(r, b, &Accuracy::Exact, l)
+                    supersample::render(r, b, &Accuracy::Exact, l, &detail)
+                        .expect("renders")
+                        .0
+                        .remove(0)
+                })
+            };
+            let constant_run = |l: Light| -> Run {
+                Box::new(move |r, b| {
+                    supersample::render(r, b, &Accuracy::Exact, l, &[])
                         .expect("renders")
                         .0
                         .remove(0)
@@ -122,6 +133,11 @@ fn run() -> Result<(), String> {
                     "light",
                     "--supersample 4".into(),
                     light_run(Light::Level(4)),
+                ),
+                (
+                    "constant",
+                    "--supersample 2, radiance constant per texel".into(),
+                    constant_run(Light::Level(2)),
                 ),
                 (
                     "light",
@@ -275,10 +291,17 @@ fn default_crop(renderer: &Renderer, path: &Path) -> Result<(), String> {
     })
     .map_err(|e| e.to_string())?;
     let mut crops = Vec::new();
-    for light in [Light::Discrete, Light::Tolerance(defaults::LIGHT_TOLERANCE)] {
+    let f = defaults::LIGHT_DETAIL;
+    let detail = [Some(defaults::procedural_env(
+        64 * f,
+        128 * f,
+        Convention::Equirect,
+    ))];
+    for light in [Light::Discrete, Light::Level(defaults::LIGHT_LEVEL)] {
         let start = Instant::now();
-        let (mut images, _) = supersample::render(renderer, &batch, &Accuracy::Exact, light)
-            .map_err(|e| e.to_string())?;
+        let (mut images, _) =
+            supersample::render(renderer, &batch, &Accuracy::Exact, light, &detail)
+                .map_err(|e| e.to_string())?;
         eprintln!(
             "default scene, {light:?}: {:.2} s",
             start.elapsed().as_secs_f64()

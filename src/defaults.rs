@@ -15,10 +15,16 @@
 
 use crate::envmap::{Convention, EnvMap};
 
-/// `matedit render`'s tolerance of the continuous light for the built-in sky (see
+/// `matedit render`'s level of the continuous light for the built-in sky (see
 /// [`crate::supersample`]): without it a glossy sphere shows the sky's texels as rings
-/// near its rim.
-pub const LIGHT_TOLERANCE: f64 = 5e-3;
+/// near its rim. Level 1 (sub-texels as wide as the lobe) removes them at about twice the
+/// layer's time on the default sphere (docs/light.md).
+pub const LIGHT_LEVEL: u32 = 1;
+
+/// The continuous light takes each texel's radiance distribution from the same light at
+/// this many times the rows and columns (16 times the texels): the procedural sky
+/// generated finer, or the map's file where it is that large.
+pub const LIGHT_DETAIL: usize = 4;
 
 /// Direction towards the sun (unit; y up, z towards the viewer): 40 degrees above the
 /// horizon, at phi = 60 degrees, which both conventions cover.

@@ -33,7 +33,7 @@ fn refined(env: &EnvMap, s: usize) -> EnvMap {
 }
 
 fn render(r: &Renderer, b: &Batch, light: Light) -> Image {
-    supersample::render(r, b, &Accuracy::Exact, light)
+    supersample::render(r, b, &Accuracy::Exact, light, &[])
         .expect("renders")
         .0
         .remove(0)
@@ -59,7 +59,7 @@ fn level_zero_and_diffuse_are_the_layer_bitwise() {
     assert_eq!(render(&r, &b, Light::Discrete), layer);
     // a diffuse material: the measurement finds nothing to gain
     let b = scene("matte-white", sky());
-    let c = supersample::choose(r.backend(), &b.scenes()[0], 1e-4).unwrap();
+    let c = supersample::choose(r.backend(), &b.scenes()[0], None, 1e-4).unwrap();
     assert_eq!(c.level, 0, "{c}");
     assert_eq!(
         render(&r, &b, Light::Tolerance(1e-4)),
@@ -89,7 +89,7 @@ fn converges_to_the_area_lights_and_meets_the_tolerance() {
     }
     assert!(errs[3] < errs[0] / 5.0, "{errs:?}");
     let tol = 1e-1;
-    let c = supersample::choose(r.backend(), &b.scenes()[0], tol).unwrap();
+    let c = supersample::choose(r.backend(), &b.scenes()[0], None, tol).unwrap();
     let e = rel(&render(&r, &b, Light::Tolerance(tol)), &truth);
     assert!(c.level > 0 && e <= tol, "{c}: error {e}");
 }
@@ -120,6 +120,7 @@ fn gradients_are_the_adjoint() {
         &Accuracy::Exact,
         light,
         Wanted::ALL,
+        &[],
     )
     .unwrap()
     .0
@@ -159,7 +160,7 @@ fn bad_values_are_errors() {
     let mut s = scene("clay", sky()).scenes()[0].clone();
     s.env.convention = Convention::Paper;
     let b = Batch::single(s).unwrap();
-    let e = supersample::render(&r, &b, &Accuracy::Exact, Light::Level(2)).unwrap_err();
+    let e = supersample::render(&r, &b, &Accuracy::Exact, Light::Level(2), &[]).unwrap_err();
     assert!(e.to_string().contains("equirect"), "{e}");
     let b = scene("clay", sky());
     for light in [
@@ -167,7 +168,96 @@ fn bad_values_are_errors() {
         Light::Tolerance(0.0),
         Light::Tolerance(f64::NAN),
     ] {
-        let e = supersample::render(&r, &b, &Accuracy::Exact, light).unwrap_err();
+        let e = supersample::render(&r, &b, &Accuracy::Exact, light, &[]).unwrap_err();
         assert!(e.to_string().starts_with("light: "), "{e}");
     }
+}
+
+#[test]
+fn with_a_finer_map_the_continuous_light_approaches_it() {
+    // the sky at 16 x 32 and, as its detail, the same sky at 64 x 128 (4 x 4 texels for
+    // each): the split texels take their radiance from the finer map (the sun's disc
+    // inside its texels), so the result nears the layer under the finer map, which
+    // constant radiance per texel cannot; at a level that splits every texel near a
+    // peak into the finer map's own texels it is that layer
+    let r = Renderer::new(Device::Cpu).unwrap();
+    let fine = defaults::procedural_env(64, 128, Convention::Equirect);
+    let b = scene("chrome-ish", sky());
+    let truth = r
+        .render(&scene("chrome-ish", fine.clone()))
+        .unwrap()
+        .remove(0);
+    let detail = [Some(fine)];
+    let with = |q| {
+        supersample::render(&r, &b, &Accuracy::Exact, Light::Level(q), &detail)
+            .unwrap()
+            .0
+            .remove(0)
+    };
+    let layer = rel(&render(&r, &b, Light::Discrete), &truth);
+    let constant = rel(&render(&r, &b, Light::Level(4)), &truth);
+    let (e1, e4) = (rel(&with(1), &truth), rel(&with(4), &truth));
+    assert!(
+        e4 < 0.5 * layer && e4 < 0.5 * constant,
+        "{e4} vs {layer}, {constant}"
+    );
+    assert!(e4 <= e1, "level 4 {e4} vs level 1 {e1}");
+    // a detail map that does not refine the scene's: one error
+    let bad = [Some(defaults::procedural_env(48, 96, Convention::Equirect))];
+    let e = supersample::render(&r, &b, &Accuracy::Exact, Light::Level(2), &bad).unwrap_err();
+    assert!(e.to_string().contains("does not refine"), "{e}");
+}
+
+#[test]
+fn gradients_with_a_detail_map_are_the_adjoint() {
+    // the layer is linear in L: <dLoss/dL, L> is the loss itself, with the detail too
+    let r = Renderer::new(Device::Cpu).unwrap();
+    let b = scene("red-specular-plastic", sky());
+    let detail = [Some(defaults::procedural_env(32, 64, Convention::Equirect))];
+    let light = Light::Level(2);
+    let image = supersample::render(&r, &b, &Accuracy::Exact, light, &detail)
+        .unwrap()
+        .0
+        .remove(0);
+    let up = Image {
+        width: image.width,
+        height: image.height,
+        pixels: (0..image.pixels.len())
+            .map(|i| [0.3 + (i % 7) as f32 * 0.1, 1.0, -0.5 + (i % 3) as f32 * 0.2])
+            .collect(),
+    };
+    let loss: f64 = image
+        .pixels
+        .iter()
+        .zip(&up.pixels)
+        .map(|(p, u)| {
+            (0..3)
+                .map(|k| f64::from(p[k]) * f64::from(u[k]))
+                .sum::<f64>()
+        })
+        .sum();
+    let g = supersample::backward(
+        &r,
+        &b,
+        std::slice::from_ref(&up),
+        &Accuracy::Exact,
+        light,
+        Wanted::ALL,
+        &detail,
+    )
+    .unwrap()
+    .0
+    .remove(0);
+    let env = &b.scenes()[0].env;
+    let dot: f64 = g
+        .d_env
+        .iter()
+        .zip(&env.texels)
+        .map(|(d, l)| {
+            (0..3)
+                .map(|k| f64::from(d[k]) * f64::from(l[k]))
+                .sum::<f64>()
+        })
+        .sum();
+    assert!((dot - loss).abs() <= 1e-4 * loss.abs(), "{dot} vs {loss}");
 }

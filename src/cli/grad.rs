@@ -8,8 +8,8 @@ use matedit::io;
 use matedit::{Wanted, supersample};
 
 use super::shared::{
-    Failure, SceneArgs, check_method, print_timings, renderer, report, report_light, runtime,
-    with_progress,
+    Failure, SceneArgs, check_method, light_details, print_timings, renderer, report, report_light,
+    report_light_level, runtime, with_progress,
 };
 
 /// Shown after the options by `matedit help grad`.
@@ -82,6 +82,7 @@ pub fn run(args: &Args) -> Result<(), Failure> {
     for s in loaded.batch.scenes() {
         light.validate(s)?;
     }
+    let details = light_details(&plan, &loaded.batch, light)?;
     let renderer = renderer(args.scene.device, args.scene.threads)?;
     let start = Instant::now();
     let (grads, (choices, light_choices)) = with_progress("differentiating", || {
@@ -92,6 +93,7 @@ pub fn run(args: &Args) -> Result<(), Failure> {
             &accuracy,
             light,
             args.wanted(),
+            &details,
         )
     })?;
     if args.scene.timings {
@@ -99,6 +101,7 @@ pub fn run(args: &Args) -> Result<(), Failure> {
     }
     report(&accuracy, &choices);
     report_light(&light_choices);
+    report_light_level(light, &details);
     let written = io::outputs::write_gradients(&plan, &loaded.batch, &grads, args.wanted())
         .map_err(runtime)?;
     for p in written {

@@ -6,8 +6,8 @@ use std::time::Instant;
 use matedit::{defaults, io, supersample};
 
 use super::shared::{
-    Failure, PreviewArgs, SceneArgs, check_method, print_timings, renderer, report, report_light,
-    runtime, with_progress,
+    Failure, PreviewArgs, SceneArgs, check_method, light_details, print_timings, renderer, report,
+    report_light, report_light_level, runtime, with_progress,
 };
 
 /// Shown after the options by `matedit help render`.
@@ -48,23 +48,25 @@ pub fn run(args: &Args) -> Result<(), Failure> {
     // the built-in sky is a picture to look at: its default is the continuous light
     let builtin = args.scene.env.is_none() && args.scene.batch.is_none();
     let light = args.scene.light(if builtin {
-        supersample::Light::Tolerance(defaults::LIGHT_TOLERANCE)
+        supersample::Light::Level(defaults::LIGHT_LEVEL)
     } else {
         supersample::Light::Discrete
     });
     for s in loaded.batch.scenes() {
         light.validate(s)?;
     }
+    let details = light_details(&plan, &loaded.batch, light)?;
     let renderer = renderer(args.scene.device, args.scene.threads)?;
     let start = Instant::now();
     let (images, (choices, light_choices)) = with_progress("rendering", || {
-        supersample::render(&renderer, &loaded.batch, &accuracy, light)
+        supersample::render(&renderer, &loaded.batch, &accuracy, light, &details)
     })?;
     if args.scene.timings {
         print_timings(&renderer, start.elapsed());
     }
     report(&accuracy, &choices);
     report_light(&light_choices);
+    report_light_level(light, &details);
     let written =
         io::outputs::write_images(&plan, &images, &args.preview.preview()).map_err(runtime)?;
     for (p, image) in written.iter().zip(&images) {

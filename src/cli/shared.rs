@@ -71,7 +71,7 @@ pub struct SceneArgs {
     /// A level of detail by name: 'exact', or parts joined by '+': envF (the map in F x F blocks), keepK (its K brightest texels kept), tableR (an R x R table of normals), cullB (lights culled within B of the largest value); tables and culling need an orthographic camera. E.g. table128+keep16.
     #[arg(long, value_name = "METHOD")]
     pub method: Option<lod::Method>,
-    /// The continuous light: each texel an area light of constant radiance, not a point; texels near each pixel's specular peak are split as finely as an estimate on sampled pixels says keeps the relative error within REL ('off': the layer's point lights) [default: off; `render` of the built-in sky: 5e-3].
+    /// The continuous light: texels near each pixel's specular peak split into sub-texel lights whose radiance comes from the same light at 4x the rows and columns (the built-in sky generated finer, or the map's file where it is that large; else constant over the texel), as finely as an estimate on sampled pixels says keeps the relative error within REL ('off': the layer's point lights) [default: off; `render` of the built-in sky: --supersample 1].
     #[arg(long, value_name = "REL|off", value_parser = parse_light_tolerance, conflicts_with = "supersample")]
     pub light_tolerance: Option<LightTolerance>,
     /// The continuous light at a fixed level Q (1 to 64): texels near each pixel's specular peak split so that about Q sub-texels span the lobe's width; 0 is the layer.
@@ -177,6 +177,29 @@ pub fn parse_tolerance(s: &str) -> Result<f64, String> {
         Ok(v)
     } else {
         Err(format!("{v} is not a positive number"))
+    }
+}
+
+/// The finer maps the continuous light takes its sub-texels from (none for the layer).
+pub fn light_details(
+    plan: &Plan,
+    batch: &Batch,
+    light: supersample::Light,
+) -> Result<Vec<Option<matedit::EnvMap>>, Failure> {
+    match light {
+        supersample::Light::Discrete | supersample::Light::Level(0) => Ok(Vec::new()),
+        _ => Ok(plan.details(batch, matedit::defaults::LIGHT_DETAIL)?),
+    }
+}
+
+/// A fixed level of the continuous light, on stderr.
+pub fn report_light_level(light: supersample::Light, details: &[Option<matedit::EnvMap>]) {
+    if let supersample::Light::Level(q @ 1..) = light {
+        let from = match details.first().and_then(Option::as_ref) {
+            Some(d) => format!("sub-texels from the light at {}x{}", d.height, d.width),
+            None => "radiance constant over each texel".into(),
+        };
+        eprintln!("matedit: continuous light: level {q} ({from})");
     }
 }
 

@@ -248,6 +248,47 @@ impl Plan {
     }
 }
 
+impl Plan {
+    /// Per scene of [`Plan::load`]'s batch (whose maps it is given), a finer map of the
+    /// same light for the continuous light (`crate::supersample`): the procedural
+    /// environment generated at `factor` times the rows and columns; a file brought to the
+    /// largest power-of-two multiple of its scene's map, up to `factor`, that its own size
+    /// allows (none when it is no larger). Files shared by several scenes are read once.
+    pub fn details(&self, batch: &Batch, factor: usize) -> Result<Vec<Option<EnvMap>>> {
+        let s = self.settings;
+        let mut done: HashMap<Option<PathBuf>, Option<EnvMap>> = HashMap::new();
+        let mut out = Vec::with_capacity(self.scenes.len());
+        for (spec, scene) in self.scenes.iter().zip(batch.scenes()) {
+            if let Some(d) = done.get(&spec.env) {
+                out.push(d.clone());
+                continue;
+            }
+            let (h, w) = (scene.env.height, scene.env.width);
+            let detail = match &spec.env {
+                None => Some(crate::defaults::procedural_env(
+                    h * factor,
+                    w * factor,
+                    s.convention,
+                )),
+                Some(p) => {
+                    let full = super::load_env(p, s.convention)?.env;
+                    let mut f = factor;
+                    while f >= 2 && !(full.height % (h * f) == 0 && full.width % (w * f) == 0) {
+                        f /= 2;
+                    }
+                    (f >= 2)
+                        .then(|| resample::downsample(&full, h * f, w * f))
+                        .transpose()
+                        .map_err(|m| Error::file(p, m))?
+                }
+            };
+            done.insert(spec.env.clone(), detail.clone());
+            out.push(detail);
+        }
+        Ok(out)
+    }
+}
+
 /// Loads (or generates) an environment map at the plan's size and convention.
 fn load_env_sized(path: Option<&Path>, s: Settings, notes: &mut Vec<String>) -> Result<EnvMap> {
     match path {

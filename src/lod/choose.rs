@@ -352,7 +352,10 @@ impl<'a> Trial<'a> {
             method,
             &self.full.pixels,
         )?;
-        Ok(rel(&plan.forward(self.backend)?.pixels, &truth.image.pixels))
+        Ok(rel(
+            &plan.forward(self.backend)?.pixels,
+            &truth.image.pixels,
+        ))
     }
 
     /// The estimate of `method`; the gradients' only if the image's is within `tol`.

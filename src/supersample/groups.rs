@@ -10,7 +10,7 @@ use rayon::prelude::*;
 
 use crate::Backend;
 use crate::envmap::{Convention, EnvMap};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::prepare::{self, Light, PixelRec, Prepared};
 use crate::scene::{Gradients, Image};
 
@@ -21,7 +21,7 @@ pub const MAX_RADIUS: usize = 8;
 /// Lobe widths (the narrowest, see [`lobe_width`]) on either side of a peak that are split.
 const WIDTHS: f64 = 3.0;
 /// Pixels whose peaks fall in the same CELL x CELL block of texels form one group.
-const CELL: usize = 2;
+const CELL: usize = 4;
 /// Groups per call of the backend.
 const CHUNK: usize = 64;
 
@@ -40,7 +40,13 @@ pub fn lobe_width(ctrl: &[f64; crate::N_PARAMS], cos_d: f64) -> Option<f64> {
 
 /// The split s of the texels near a pixel's peak at level `q` (a lobe width spans about
 /// q sub-texels), and how many rows around the peak are split; `None` for s = 1.
-fn split_of(env: &EnvMap, ctrl: &[f64; crate::N_PARAMS], p: &PixelRec, q: u32) -> Option<Key> {
+fn split_of(
+    env: &EnvMap,
+    ctrl: &[f64; crate::N_PARAMS],
+    p: &PixelRec,
+    q: u32,
+    max_split: usize,
+) -> Option<Key> {
     let len = prepare::dot(p.n, p.n).sqrt();
     let n = p.n.map(|v| v / len);
     let c = prepare::dot(n, p.wp);
@@ -49,7 +55,10 @@ fn split_of(env: &EnvMap, ctrl: &[f64; crate::N_PARAMS], p: &PixelRec, q: u32) -
     }
     let sigma = lobe_width(ctrl, c)?;
     let texel = PI / env.height as f64;
-    let split = ((f64::from(q) * texel / sigma).ceil() as usize).clamp(1, MAX_SPLIT);
+    // a power of two, so that a split and a detail map's factor divide one another
+    let split = ((f64::from(q) * texel / sigma).ceil() as usize)
+        .clamp(1, max_split)
+        .next_power_of_two();
     if split == 1 {
         return None;
     }
@@ -109,6 +118,7 @@ fn neighbourhood(env: &EnvMap, cell: (usize, usize), radius: usize) -> Vec<usize
 fn group(
     prep: &Prepared,
     env: &EnvMap,
+    detail: Option<&EnvMap>,
     key: Key,
     pixels: &[&PixelRec],
 ) -> Option<(Group, [Prepared; 2])> {
@@ -123,9 +133,11 @@ fn group(
         .map(|(k, p)| PixelRec { index: k, ..**p })
         .collect();
     let (mut area, mut point) = (Vec::new(), Vec::new());
+    let mut rho = Vec::with_capacity(texels.len() * s * s);
     for (t, &i) in texels.iter().enumerate() {
         let (r, c) = (i / env.width, i % env.width);
         let l = env.texels[i].map(f64::from);
+        let shares = detail.map(|d| shares(d, env.height, r, c, s));
         let (w, d_omega) = Convention::Equirect.texel(r, c, env.height, env.width);
         point.push(Light {
             index: t,
@@ -137,11 +149,13 @@ fn group(
             for b in 0..s {
                 let (w, d_omega) =
                     Convention::Equirect.texel(r * s + a, c * s + b, env.height * s, env.width * s);
+                let share = shares.as_ref().map_or([1.0; 3], |v| v[a * s + b]);
+                rho.push(share.map(|x| x as f32));
                 area.push(Light {
                     index: (t * s + a) * s + b,
                     w,
                     d_omega,
-                    l,
+                    l: [0, 1, 2].map(|k| l[k] * share[k]),
                 });
             }
         }
@@ -164,6 +178,7 @@ fn group(
             pixels: pixels.iter().map(|p| p.index).collect(),
             texels,
             split: s,
+            rho,
         },
         [scene(&area), scene(&point)],
     ))
@@ -176,6 +191,58 @@ struct Group {
     /// Map index of each split texel (local texel t is `texels[t]`).
     texels: Vec<usize>,
     split: usize,
+    /// Per sub-texel (texel-major), its radiance over its texel's, per channel.
+    rho: Vec<[f32; 3]>,
+}
+
+/// The radiance of texel (r, c)'s s x s sub-texels over the texel's, per channel, from
+/// `detail`, a map of F x F texels for each of the `height`-row map's (F a power of two):
+/// each sub-texel's solid-angle-weighted mean of the detail texels it covers (s <= F) or
+/// of the one it lies in (s > F), over the mean of all F x F. 1 where the texel's mean is
+/// 0. The sub-texels' radiances, weighted by their solid angles, average to the texel's.
+fn shares(detail: &EnvMap, height: usize, r: usize, c: usize, s: usize) -> Vec<[f64; 3]> {
+    let f = detail.height / height;
+    let (dh, dw) = (detail.height, detail.width);
+    let mean = |rows: std::ops::Range<usize>, cols: std::ops::Range<usize>| {
+        let (mut sum, mut weight) = ([0.0f64; 3], 0.0);
+        for y in rows {
+            let (_, d_omega) = Convention::Equirect.texel(y, 0, dh, dw);
+            for x in cols.clone() {
+                let v = detail.texels[y * dw + x];
+                for k in 0..3 {
+                    sum[k] += d_omega * f64::from(v[k]);
+                }
+                weight += d_omega;
+            }
+        }
+        sum.map(|v| v / weight)
+    };
+    let whole = mean(r * f..(r + 1) * f, c * f..(c + 1) * f);
+    let ratio = |v: [f64; 3]| {
+        [0, 1, 2].map(|k| {
+            if whole[k] != 0.0 {
+                v[k] / whole[k]
+            } else {
+                1.0
+            }
+        })
+    };
+    let mut out = Vec::with_capacity(s * s);
+    for a in 0..s {
+        for b in 0..s {
+            let v = if s <= f {
+                let k = f / s;
+                let (y, x) = (r * f + a * k, c * f + b * k);
+                mean(y..y + k, x..x + k)
+            } else {
+                let k = s / f;
+                let (y, x) = (r * f + a / k, c * f + b / k);
+                mean(y..y + 1, x..x + 1)
+            };
+            out.push(ratio(v));
+        }
+    }
+    out
 }
 
 /// What a level adds to the layer on a scene's pixels.
@@ -188,16 +255,24 @@ pub struct Corrections {
 impl Corrections {
     /// The corrections of level `q` for the pixels of `prep` (whose map is `env`, under
     /// the equirect convention).
-    pub fn new(prep: &Prepared, env: &EnvMap, q: u32) -> Self {
+    ///
+    /// With `detail` (a finer map of the same light, [`check_detail`]), the sub-texels
+    /// take their radiance's distribution within a texel from it and are never finer
+    /// than its texels, so that the levels converge to the layer under the finer map;
+    /// without, each texel's radiance is constant over it (the area light).
+    pub fn new(prep: &Prepared, env: &EnvMap, detail: Option<&EnvMap>, q: u32) -> Self {
+        // a detail map's texels are the finest the light is known at: splitting them
+        // further would make them area lights, which the finer map's layer is not
+        let max_split = detail.map_or(MAX_SPLIT, |d| d.height / env.height);
         let mut by_key: BTreeMap<Key, Vec<&PixelRec>> = BTreeMap::new();
         for p in &prep.pixels {
-            if let Some(k) = split_of(env, &prep.ctrl, p, q) {
+            if let Some(k) = split_of(env, &prep.ctrl, p, q, max_split) {
                 by_key.entry(k).or_default().push(p);
             }
         }
         let built: Vec<(Group, [Prepared; 2])> = by_key
             .into_par_iter()
-            .filter_map(|(key, pixels)| group(prep, env, key, &pixels))
+            .filter_map(|(key, pixels)| group(prep, env, detail, key, &pixels))
             .collect();
         let mut groups = Vec::with_capacity(built.len());
         let mut scenes = Vec::with_capacity(2 * built.len());
@@ -307,7 +382,11 @@ impl Corrections {
             let ss = g.split * g.split;
             for (t, &i) in g.texels.iter().enumerate() {
                 for ch in 0..3 {
-                    let sub: f32 = area.d_env[t * ss..(t + 1) * ss].iter().map(|d| d[ch]).sum();
+                    let sub: f32 = area.d_env[t * ss..(t + 1) * ss]
+                        .iter()
+                        .zip(&g.rho[t * ss..(t + 1) * ss])
+                        .map(|(d, rho)| d[ch] * rho[ch])
+                        .sum();
                     grads.d_env[i][ch] += sub - point.d_env[t][ch];
                 }
             }
@@ -316,5 +395,26 @@ impl Corrections {
             }
         }
         Ok(())
+    }
+}
+
+/// Checks that `detail` can refine `env`: the same convention (equirect) and F times its
+/// rows and columns, F a power of two from 2 to [`MAX_SPLIT`].
+pub fn check_detail(env: &EnvMap, detail: &EnvMap) -> Result<()> {
+    let f = detail.height / env.height.max(1);
+    let ok = detail.convention == Convention::Equirect
+        && f >= 2
+        && f <= MAX_SPLIT
+        && f.is_power_of_two()
+        && detail.height == f * env.height
+        && detail.width == f * env.width;
+    if ok {
+        Ok(())
+    } else {
+        Err(Error::Invalid(format!(
+            "light: a {}x{} detail map does not refine a {}x{} map (it needs 2, 4 or 8 times \
+             its rows and columns, equirect)",
+            detail.height, detail.width, env.height, env.width
+        )))
     }
 }

@@ -19,9 +19,9 @@
 
 mod groups;
 
-pub use groups::{Corrections, MAX_RADIUS, MAX_SPLIT, lobe_width};
+pub use groups::{Corrections, MAX_RADIUS, MAX_SPLIT, check_detail, lobe_width};
 
-use crate::envmap::Convention;
+use crate::envmap::{Convention, EnvMap};
 use crate::error::{Error, Result};
 use crate::prepare::{PixelRec, Prepared};
 use crate::renderer::{Accuracy, Renderer};
@@ -132,8 +132,18 @@ fn relative(a: &[[f32; 3]], b: &[[f32; 3]]) -> f64 {
 /// The coarsest level of [`LEVELS`] (or the layer) whose difference from the next finer
 /// level that changes anything, measured on a stratified sample of the pixels, is within
 /// `tol / 2`; the finest level if none is.
-pub fn choose(backend: &dyn Backend, scene: &Scene, tol: f64) -> Result<Choice> {
+///
+/// `detail`: a finer map of the scene's light ([`Corrections::new`]).
+pub fn choose(
+    backend: &dyn Backend,
+    scene: &Scene,
+    detail: Option<&EnvMap>,
+    tol: f64,
+) -> Result<Choice> {
     Light::Tolerance(tol).validate(scene)?;
+    if let Some(d) = detail {
+        check_detail(&scene.env, d)?;
+    }
     let prep = Prepared::new(scene);
     let step = prep.pixels.len().div_ceil(SAMPLED).max(1);
     let pixels: Vec<PixelRec> = prep
@@ -151,7 +161,7 @@ pub fn choose(backend: &dyn Backend, scene: &Scene, tol: f64) -> Result<Choice> 
     let (mut level, mut values) = (0, base.clone());
     let mut estimate = 0.0;
     for q in LEVELS {
-        let corr = Corrections::new(&sample, &scene.env, q);
+        let corr = Corrections::new(&sample, &scene.env, detail, q);
         if corr.is_empty() {
             continue;
         }
@@ -183,17 +193,23 @@ fn levels(
     backend: &dyn Backend,
     batch: &Batch,
     light: Light,
+    details: &[Option<EnvMap>],
 ) -> Result<Vec<(u32, Option<Choice>)>> {
     batch
         .scenes()
         .iter()
-        .map(|s| {
+        .enumerate()
+        .map(|(b, s)| {
             light.validate(s)?;
+            let detail = detail_of(details, b);
+            if let Some(d) = detail {
+                check_detail(&s.env, d)?;
+            }
             Ok(match light {
                 Light::Discrete => (0, None),
                 Light::Level(q) => (q, None),
                 Light::Tolerance(t) => {
-                    let c = choose(backend, s, t)?;
+                    let c = choose(backend, s, detail, t)?;
                     (c.level, Some(c))
                 }
             })
@@ -201,21 +217,34 @@ fn levels(
         .collect()
 }
 
+/// Scene `b`'s detail map, if any.
+fn detail_of(details: &[Option<EnvMap>], b: usize) -> Option<&EnvMap> {
+    details.get(b).and_then(Option::as_ref)
+}
+
 /// What [`render`] and [`backward`] chose per scene: the level of detail and the light.
 pub type Choices = (Vec<Option<lod::Choice>>, Vec<Option<Choice>>);
 
 /// One image per scene under `accuracy` (the levels of detail) and `light`: the layer's
-/// image plus each scene's corrections.
+/// image plus each scene's corrections. `details`: per scene, a finer map of its light
+/// (2, 4 or 8 times the rows and columns), or none (an empty slice: none for any).
 pub fn render(
     renderer: &Renderer,
     batch: &Batch,
     accuracy: &Accuracy,
     light: Light,
+    details: &[Option<EnvMap>],
 ) -> Result<(Vec<Image>, Choices)> {
-    let levels = levels(renderer.backend(), batch, light)?;
+    let levels = levels(renderer.backend(), batch, light, details)?;
     let (mut images, lod_choices) = renderer.render_with(batch, accuracy)?;
-    for ((scene, image), &(q, _)) in batch.scenes().iter().zip(&mut images).zip(&levels) {
-        Corrections::new(&Prepared::new(scene), &scene.env, q)
+    for (b, ((scene, image), &(q, _))) in batch
+        .scenes()
+        .iter()
+        .zip(&mut images)
+        .zip(&levels)
+        .enumerate()
+    {
+        Corrections::new(&Prepared::new(scene), &scene.env, detail_of(details, b), q)
             .add_forward(renderer.backend(), image)?;
     }
     check(images.iter().map(|i| &i.pixels), "image")?;
@@ -232,23 +261,22 @@ pub fn backward(
     accuracy: &Accuracy,
     light: Light,
     wanted: Wanted,
+    details: &[Option<EnvMap>],
 ) -> Result<(Vec<Gradients>, Choices)> {
-    let levels = levels(renderer.backend(), batch, light)?;
+    let levels = levels(renderer.backend(), batch, light, details)?;
     let (mut grads, lod_choices) =
         renderer.backward_wanted_with(batch, upstream, accuracy, wanted)?;
     if wanted.any() {
-        for (((scene, g), u), &(q, _)) in batch
+        for (b, (((scene, g), u), &(q, _))) in batch
             .scenes()
             .iter()
             .zip(&mut grads)
             .zip(upstream)
             .zip(&levels)
+            .enumerate()
         {
-            Corrections::new(&Prepared::new(scene), &scene.env, q).add_backward(
-                renderer.backend(),
-                u,
-                g,
-            )?;
+            Corrections::new(&Prepared::new(scene), &scene.env, detail_of(details, b), q)
+                .add_backward(renderer.backend(), u, g)?;
             g.keep(wanted);
         }
     }
