@@ -403,8 +403,7 @@ impl Corrections {
 pub fn check_detail(env: &EnvMap, detail: &EnvMap) -> Result<()> {
     let f = detail.height / env.height.max(1);
     let ok = detail.convention == Convention::Equirect
-        && f >= 2
-        && f <= MAX_SPLIT
+        && (2..=MAX_SPLIT).contains(&f)
         && f.is_power_of_two()
         && detail.height == f * env.height
         && detail.width == f * env.width;
