@@ -200,6 +200,34 @@ fn relative(a: &Image, b: &Image) -> f64 {
     diff / max
 }
 
+/// The families of runs, as the table's rows name them.
+const FAMILIES: [&str; 5] = ["discrete", "light", "constant", "lod", "finer"];
+
+fn describe(family: &str) -> &'static str {
+    match family {
+        "discrete" => "the layer",
+        "light" => "continuous light",
+        "constant" => "constant radiance",
+        "lod" => "levels of detail",
+        _ => "the map at 4x",
+    }
+}
+
+/// A family's marker, centred on (0, 0) in pixels.
+fn marker<DB: DrawingBackend>(
+    family: &str,
+    colour: RGBColor,
+) -> DynElement<'static, DB, (i32, i32)> {
+    let style = colour.stroke_width(2);
+    match family {
+        "discrete" => Circle::new((0, 0), 7, style).into_dyn(),
+        "light" => TriangleMarker::new((0, 0), 7, style).into_dyn(),
+        "constant" => Rectangle::new([(-5, -5), (5, 5)], style).into_dyn(),
+        "lod" => Cross::new((0, 0), 6, style).into_dyn(),
+        _ => Rectangle::new([(-5, -5), (5, 5)], colour.filled()).into_dyn(),
+    }
+}
+
 /// Error against the 16x light over time, log-log: a colour per material, a marker per
 /// family.
 fn plot(rows: &[(&str, String, f64, f64)], path: &Path, size: usize) -> Result<(), String> {
@@ -240,25 +268,23 @@ fn plot(rows: &[(&str, String, f64, f64)], path: &Path, size: usize) -> Result<(
             .map_err(e)?;
         let colours = [("diffuse", BLUE), ("glossy", RED), ("sharp", BLACK)];
         for (kind, colour) in colours {
-            for family in ["discrete", "light", "lod", "finer"] {
+            for family in FAMILIES {
                 let pts: Vec<(f64, f64)> = rows
                     .iter()
                     .filter(|r| r.0 == kind && r.1 == family)
                     .map(|r| (r.2, r.3.max(1e-7)))
                     .collect();
-                let style = colour.stroke_width(2);
-                let series = chart.draw_series(pts.into_iter().map(|p| -> DynElement<_, _> {
-                    match family {
-                        "discrete" => Circle::new(p, 7, style).into_dyn(),
-                        "light" => TriangleMarker::new(p, 7, style).into_dyn(),
-                        "lod" => Cross::new(p, 6, style).into_dyn(),
-                        _ => Rectangle::new([p, p], colour.filled().stroke_width(9)).into_dyn(),
-                    }
-                }));
-                series
+                if pts.is_empty() {
+                    continue;
+                }
+                chart
+                    .draw_series(
+                        pts.into_iter()
+                            .map(|p| EmptyElement::at(p) + marker(family, colour)),
+                    )
                     .map_err(e)?
-                    .label(format!("{kind}: {family}"))
-                    .legend(move |(x, y)| Circle::new((x, y), 5, colour.filled()));
+                    .label(format!("{kind}: {}", describe(family)))
+                    .legend(move |c| EmptyElement::at(c) + marker(family, colour));
             }
         }
         chart

@@ -63,16 +63,29 @@ fn split_of(
         return None;
     }
     let radius = ((WIDTHS * sigma / texel + 0.5).ceil() as usize).min(MAX_RADIUS);
-    let r = [0, 1, 2].map(|k| 2.0 * c * n[k] - p.wp[k]);
-    let theta = r[1].clamp(-1.0, 1.0).acos();
-    let phi = r[2].atan2(r[0]).rem_euclid(2.0 * PI);
-    let row = ((theta / PI * env.height as f64) as usize).min(env.height - 1) / CELL;
-    let col = ((phi / (2.0 * PI) * env.width as f64) as usize).min(env.width - 1) / CELL;
+    let (row, col) = peak_texel(env, p)?;
     Some(Key {
-        cell: (row, col),
+        cell: (row / CELL, col / CELL),
         split,
         radius,
     })
+}
+
+/// The texel (row, column) of a pixel's specular peak, the mirror direction of w_p about
+/// its normal; `None` where the normal faces away from the viewer.
+pub fn peak_texel(env: &EnvMap, p: &PixelRec) -> Option<(usize, usize)> {
+    let len = prepare::dot(p.n, p.n).sqrt();
+    let n = p.n.map(|v| v / len);
+    let c = prepare::dot(n, p.wp);
+    if c.is_nan() || c <= 0.0 {
+        return None;
+    }
+    let r = [0, 1, 2].map(|k| 2.0 * c * n[k] - p.wp[k]);
+    let theta = r[1].clamp(-1.0, 1.0).acos();
+    let phi = r[2].atan2(r[0]).rem_euclid(2.0 * PI);
+    let row = ((theta / PI * env.height as f64) as usize).min(env.height - 1);
+    let col = ((phi / (2.0 * PI) * env.width as f64) as usize).min(env.width - 1);
+    Some((row, col))
 }
 
 /// What a group shares: the cell of texels its peaks are in, the split and the radius.

@@ -19,7 +19,7 @@
 
 mod groups;
 
-pub use groups::{Corrections, MAX_RADIUS, MAX_SPLIT, check_detail, lobe_width};
+pub use groups::{Corrections, MAX_RADIUS, MAX_SPLIT, check_detail, lobe_width, peak_texel};
 
 use crate::envmap::{Convention, EnvMap};
 use crate::error::{Error, Result};
@@ -32,8 +32,12 @@ use crate::{Backend, lod};
 pub const LEVELS: [u32; 5] = [1, 2, 4, 8, 16];
 /// Largest level accepted.
 pub const MAX_LEVEL: u32 = 64;
-/// Most pixels the estimate samples.
+/// Pixels the estimate spreads evenly over the image (at most) ...
 const SAMPLED: usize = 2048;
+/// ... and at most this many more whose peak is on one of the brightest texels ...
+const HIGHLIGHT_PIXELS: usize = 512;
+/// ... of this many.
+const BRIGHT_TEXELS: usize = 16;
 /// A level is taken when this many times its measured difference is within tolerance.
 const SAFETY: f64 = 2.0;
 
@@ -84,14 +88,13 @@ impl Light {
 pub struct Choice {
     /// The level (0: the layer).
     pub level: u32,
-    /// The measured difference from the next finer level, max over max, on the sample.
+    /// The measured difference from the finest level, max over max, on the sample (0 for
+    /// the finest itself).
     pub estimate: f64,
     /// Sampled pixels.
     pub sampled: usize,
     /// The tolerance.
     pub tolerance: f64,
-    /// Whether the finest level was taken without meeting the tolerance.
-    pub unmet: bool,
 }
 
 impl std::fmt::Display for Choice {
@@ -103,15 +106,11 @@ impl std::fmt::Display for Choice {
         };
         write!(
             f,
-            "{what} (estimated error {:.2e} on {} sampled pixels, tolerance {:e}{})",
+            "{what} (estimated error {:.2e} against level {} on {} sampled pixels, tolerance {:e})",
             self.estimate,
+            LEVELS[LEVELS.len() - 1],
             self.sampled,
             self.tolerance,
-            if self.unmet {
-                "; not met at the finest level"
-            } else {
-                ""
-            }
         )
     }
 }
@@ -129,9 +128,9 @@ fn relative(a: &[[f32; 3]], b: &[[f32; 3]]) -> f64 {
     if max > 0.0 { diff / max } else { diff }
 }
 
-/// The coarsest level of [`LEVELS`] (or the layer) whose difference from the next finer
-/// level that changes anything, measured on a stratified sample of the pixels, is within
-/// `tol / 2`; the finest level if none is.
+/// The coarsest level of [`LEVELS`] (or the layer) whose difference from the finest level,
+/// measured on a sample of the pixels (spread evenly, and those whose peak is on one of
+/// the brightest texels), is within `tol / 2`; the finest level if none is.
 ///
 /// `detail`: a finer map of the scene's light ([`Corrections::new`]).
 pub fn choose(
@@ -145,47 +144,96 @@ pub fn choose(
         check_detail(&scene.env, d)?;
     }
     let prep = Prepared::new(scene);
-    let step = prep.pixels.len().div_ceil(SAMPLED).max(1);
-    let pixels: Vec<PixelRec> = prep
-        .pixels
-        .iter()
-        .step_by(step)
+    let pixels: Vec<PixelRec> = sample_positions(&prep, &scene.env)
+        .into_iter()
         .enumerate()
-        .map(|(k, p)| PixelRec { index: k, ..*p })
+        .map(|(k, i)| PixelRec {
+            index: k,
+            ..prep.pixels[i]
+        })
         .collect();
     let sampled = pixels.len();
     let sample = prep.with_pixels(sampled, 1, pixels);
     let base = backend
         .render_prepared(std::slice::from_ref(&sample))?
         .remove(0);
-    let (mut level, mut values) = (0, base.clone());
-    let mut estimate = 0.0;
-    for q in LEVELS {
-        let corr = Corrections::new(&sample, &scene.env, detail, q);
-        if corr.is_empty() {
-            continue;
-        }
-        let mut finer = base.clone();
-        corr.add_forward(backend, &mut finer)?;
-        estimate = relative(&values.pixels, &finer.pixels);
+    let at = |q: u32| -> Result<Image> {
+        let mut image = base.clone();
+        Corrections::new(&sample, &scene.env, detail, q).add_forward(backend, &mut image)?;
+        Ok(image)
+    };
+    // the reference: the finest level, whose texels near a peak are split as finely as
+    // the light is known (a detail map's texels) or into MAX_SPLIT x MAX_SPLIT. Against
+    // the next level instead, a level that changes little (level 1 where few texels are
+    // split) passed before one that changes much.
+    let finest = LEVELS[LEVELS.len() - 1];
+    let reference = at(finest)?;
+    for q in std::iter::once(0).chain(LEVELS).take(LEVELS.len()) {
+        let image = if q == 0 { base.clone() } else { at(q)? };
+        let estimate = relative(&image.pixels, &reference.pixels);
         if SAFETY * estimate <= tol {
             return Ok(Choice {
-                level,
+                level: q,
                 estimate,
                 sampled,
                 tolerance: tol,
-                unmet: false,
             });
         }
-        (level, values) = (q, finer);
     }
     Ok(Choice {
-        level,
-        estimate,
+        level: finest,
+        estimate: 0.0,
         sampled,
         tolerance: tol,
-        unmet: level != 0,
     })
+}
+
+/// The pixels the estimate runs on (positions in `prep.pixels`): [`SAMPLED`] spread evenly,
+/// and up to [`HIGHLIGHT_PIXELS`] of those whose specular peak lies on or next to one of
+/// the [`BRIGHT_TEXELS`] brightest texels: a small highlight, where the continuous light
+/// differs most, can fall between evenly spread pixels.
+fn sample_positions(prep: &Prepared, env: &EnvMap) -> Vec<usize> {
+    let step = prep.pixels.len().div_ceil(SAMPLED).max(1);
+    let mut positions: Vec<usize> = (0..prep.pixels.len()).step_by(step).collect();
+    let mut energy: Vec<(f64, usize)> = env
+        .texels
+        .iter()
+        .enumerate()
+        .map(|(i, l)| {
+            let (_, d_omega) =
+                env.convention
+                    .texel(i / env.width, i % env.width, env.height, env.width);
+            (
+                l.iter().map(|&v| f64::from(v).abs()).sum::<f64>() * d_omega,
+                i,
+            )
+        })
+        .collect();
+    energy.sort_by(|a, b| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1)));
+    let mut near = vec![false; env.texels.len()];
+    for &(e, i) in energy.iter().take(BRIGHT_TEXELS) {
+        if e <= 0.0 {
+            break;
+        }
+        let (r, c) = (i / env.width, i % env.width);
+        for dr in [-1isize, 0, 1] {
+            let rr = r as isize + dr;
+            if rr < 0 || rr >= env.height as isize {
+                continue;
+            }
+            for dc in [env.width - 1, 0, 1] {
+                near[rr as usize * env.width + (c + dc) % env.width] = true;
+            }
+        }
+    }
+    let highlight: Vec<usize> = (0..prep.pixels.len())
+        .filter(|&i| peak_texel(env, &prep.pixels[i]).is_some_and(|(r, c)| near[r * env.width + c]))
+        .collect();
+    let every = highlight.len().div_ceil(HIGHLIGHT_PIXELS).max(1);
+    positions.extend(highlight.into_iter().step_by(every));
+    positions.sort_unstable();
+    positions.dedup();
+    positions
 }
 
 /// Each scene's level under `light`, and the choice where a tolerance made it.
