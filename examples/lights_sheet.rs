@@ -9,10 +9,16 @@
 //!
 //! sheet.png: 128 x 256 maps, Reinhard x / (1 + x) then sRGB. spheres.png: per map a
 //! 96-pixel orthographic sphere of `red-specular-plastic` beside one of `clay`, rendered on
-//! the fast CPU path from the map at 32 x 64, at exposure -1, Reinhard.
+//! the fast CPU path from the map at 64 x 128, at exposure -1, Reinhard.
+//!
+//! It also prints the clear sky's sun-to-sky horizontal illuminance ratio over sun
+//! elevation and turbidity, and the time to generate each kind at 64 x 128 and 256 x 512.
 
 use std::path::PathBuf;
 
+use std::time::Instant;
+
+use matedit::envgen::sky::SunSky;
 use matedit::envgen::{self, Kind};
 use matedit::io::png::{Preview, encode_preview};
 use matedit::io::{Tonemap, write_atomic};
@@ -80,7 +86,7 @@ fn run() -> Result<(), String> {
                 height: env.height,
                 pixels: env.texels.clone(),
             });
-            let small = envgen::generate(kind, seed, 32, 64).map_err(|e| e.to_string())?;
+            let small = envgen::generate(kind, seed, 64, 128).map_err(|e| e.to_string())?;
             let scenes = [&glossy, &diffuse].map(|m| Scene {
                 normals: NormalMap::sphere(96),
                 env: small.clone(),
@@ -122,7 +128,79 @@ fn run() -> Result<(), String> {
         );
         Ok(())
     };
+    sun_to_sky_table()?;
+    builtin_sun_to_sky();
+    timings()?;
     write("sheet.png", &tile(&maps), 0.0)?;
     write("spheres.png", &tile(&spheres), -1.0)?;
+    Ok(())
+}
+
+/// The sun's horizontal illuminance over the sky's, as a Markdown table.
+fn sun_to_sky_table() -> Result<(), String> {
+    let turbidities = [2.0, 3.0, 5.0, 10.0];
+    println!("| sun elevation | T = 2 | T = 3 | T = 5 | T = 10 |");
+    println!("| ---: | ---: | ---: | ---: | ---: |");
+    for elevation in [2.0, 5.0, 15.0, 30.0, 45.0, 60.0, 90.0] {
+        let mut row = format!("| {elevation} |");
+        for turbidity in turbidities {
+            let sky = SunSky {
+                elevation,
+                azimuth: 0.0,
+                turbidity,
+                ground: [0.2; 3],
+                sun: true,
+            };
+            let r = sky.model().map_err(|e| e.to_string())?.sun_to_sky();
+            row += &format!(" {r:.2} |");
+        }
+        println!("{row}");
+    }
+    Ok(())
+}
+
+/// The same ratio for the built-in sky (`defaults`), from its constants: the sun's
+/// luminance times its solid angle and cosine over the sky's horizontal illuminance (a
+/// midpoint quadrature).
+fn builtin_sun_to_sky() {
+    use matedit::defaults::{SUN_DIR, SUN_RADIANCE, SUN_RADIUS, sky_radiance};
+    use matedit::envgen::colour::luminance;
+    use std::f64::consts::PI;
+    let omega = 2.0 * PI * (1.0 - SUN_RADIUS.cos());
+    let sun = luminance(SUN_RADIANCE) * omega * SUN_DIR[1];
+    let (nt, np) = (256, 512);
+    let mut sky = 0.0;
+    for i in 0..nt {
+        let theta = (i as f64 + 0.5) / nt as f64 * PI / 2.0;
+        let d = theta.sin() * theta.cos() * (PI / 2.0 / nt as f64) * (2.0 * PI / np as f64);
+        for j in 0..np {
+            let phi = (j as f64 + 0.5) / np as f64 * 2.0 * PI;
+            let w = [
+                phi.cos() * theta.sin(),
+                theta.cos(),
+                phi.sin() * theta.sin(),
+            ];
+            sky += luminance(sky_radiance(w)) * d;
+        }
+    }
+    println!(
+        "built-in sky: sun-to-sky {:.2} (sun {sun:.3}, sky {sky:.3})",
+        sun / sky
+    );
+}
+
+/// Seconds to generate each kind (seed 0), one run each.
+fn timings() -> Result<(), String> {
+    println!("| kind | 64 x 128 | 256 x 512 |");
+    println!("| --- | ---: | ---: |");
+    for kind in Kind::ALL {
+        let mut row = format!("| {kind} |");
+        for (h, w) in [(64, 128), (256, 512)] {
+            let start = Instant::now();
+            envgen::generate(kind, 0, h, w).map_err(|e| e.to_string())?;
+            row += &format!(" {:.3} |", start.elapsed().as_secs_f64());
+        }
+        println!("{row}");
+    }
     Ok(())
 }

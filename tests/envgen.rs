@@ -134,7 +134,12 @@ fn sun_to_sky_illuminance_is_realistic() {
     let clear = sky(60.0, 0.0, 2.5).model().unwrap().sun_to_sky();
     let hazy = sky(60.0, 0.0, 8.0).model().unwrap().sun_to_sky();
     let low = sky(5.0, 0.0, 2.5).model().unwrap().sun_to_sky();
+    let zenith = sky(90.0, 0.0, 2.0).model().unwrap().sun_to_sky();
     assert!((3.0..12.0).contains(&clear), "clear high sun: {clear}");
+    assert!(
+        (5.0..12.0).contains(&zenith),
+        "clear sun at the zenith: {zenith}"
+    );
     assert!(hazy < 0.7 * clear, "hazy {hazy} vs clear {clear}");
     assert!(
         low < 0.5 * clear && low > 0.0,
@@ -181,18 +186,36 @@ fn clear_sky_brightens_towards_the_horizon_and_around_the_sun() {
 }
 
 #[test]
-fn ground_is_dimmer_than_the_sky() {
+fn ground_is_lit_by_sky_and_sun() {
+    // a Lambertian ground: radiance = albedo x (the map's horizontal illuminance) / pi
+    let (h, w) = (64, 128);
     for seed in 0..8 {
-        let e = envgen::generate(Kind::SunSky, seed, 32, 64).unwrap();
-        let mean = |rows: std::ops::Range<usize>| {
-            let n = rows.len() * 64;
-            rows.flat_map(|r| (0..64).map(move |c| r * 64 + c))
-                .map(|i| lum(e.texels[i]))
-                .sum::<f64>()
-                / n as f64
+        let Params::SunSky(p) = Params::draw(Kind::SunSky, seed) else {
+            unreachable!()
         };
-        let (up, down) = (mean(2..14), mean(18..32));
-        assert!(down < 0.5 * up, "seed {seed}: ground {down}, sky {up}");
+        let e = p.env(h, w).unwrap();
+        let mut irradiance = [0.0; 3];
+        for (i, t) in e.texels[..h / 2 * w].iter().enumerate() {
+            let (dir, d) = Convention::Equirect.texel(i / w, i % w, h, w);
+            for (sum, v) in irradiance.iter_mut().zip(t) {
+                *sum += *v as f64 * dir[1] * d;
+            }
+        }
+        let ground = e.texels[(h - 1) * w];
+        for k in 0..3 {
+            let want = p.ground[k] * irradiance[k] / std::f64::consts::PI;
+            // the map's quadrature of the illuminance against the model's: 2%
+            assert!(
+                (ground[k] as f64 / want - 1.0).abs() < 0.02,
+                "seed {seed} channel {k}: ground {} vs {want}",
+                ground[k]
+            );
+        }
+        assert!(
+            p.ground.iter().all(|a| (0.03..0.25).contains(a)),
+            "{:?}",
+            p.ground
+        );
     }
 }
 

@@ -187,11 +187,11 @@ impl fmt::Display for Params {
     }
 }
 
-/// A ground between grey and brown, albedo 0.1 to 0.35.
+/// A ground between grey and brown (grass, soil, asphalt), albedo 0.05 to 0.2.
 fn ground_albedo(rng: &mut SplitMix) -> [f64; 3] {
     let brown = [1.0, 0.8, 0.6];
     let tint = colour::mix([1.0; 3], brown, rng.uniform());
-    colour::scale(colour::unit_luminance(tint), 0.1 + 0.25 * rng.uniform())
+    colour::scale(colour::unit_luminance(tint), 0.05 + 0.15 * rng.uniform())
 }
 
 /// The light of `kind` that `seed` draws, as a `height` x `width` equirect map: the same

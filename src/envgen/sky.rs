@@ -8,9 +8,12 @@
 //! coefficients linear in turbidity T and its zenith luminance and chromaticity
 //! (appendix A.2). The sun: 5778 K black-body light of 128 klux outside the atmosphere,
 //! through Rayleigh scattering and aerosol (Angstrom) extinction along the relative air
-//! mass of Kasten and Young (1989), per channel at 615, 545 and 465 nm. Both are in
-//! kcd/m^2 before scaling, so their ratio is the model's. The ground below the horizon is
-//! Lambertian: albedo times the horizontal illuminance of sky and sun over pi.
+//! mass of Kasten and Young (1989), per channel at 615, 545 and 465 nm. The sky's level
+//! (its horizontal illuminance) is the light the beam loses at 545 nm, 0.6 of it reaching
+//! the ground: E_sky = 0.6 E_0 (cos theta_s + 0.005) (1 - tau), so that the sun-to-sky
+//! ratio is tau / (0.6 (1 - tau)) (about 7 for a clear sky and a high sun, 1 at T = 10).
+//! The ground below the horizon is Lambertian: albedo times the horizontal illuminance of
+//! sky and sun over pi.
 //!
 //! Scale: the map is divided by the sky's horizontal illuminance over pi (the radiance of
 //! a uniform sky as bright), so that the sky's radiance is of order 1 whatever the sun.
@@ -166,6 +169,13 @@ impl SunSky {
             ground: [0.0; 3],
             scale: 1.0,
         };
+        // The sky's level from the light the beam loses: Preetham's zenith luminance gave
+        // a sky brighter than that at high turbidity (sun-to-sky 0.42 at T = 10, sun at
+        // the zenith); its distribution and colours are kept.
+        let lost = 1.0 - transmittance(t, theta_s)[1];
+        let want = DIFFUSE_SHARE * SOLAR_ILLUMINANCE * (theta_s.cos().max(0.0) + TWILIGHT) * lost;
+        let level = want / luminance(m.sky_illuminance()).max(1e-12);
+        m.zenith[0] *= level;
         let sky_e = m.sky_illuminance();
         let sun_e = m.sun_illuminance();
         let e = [0, 1, 2].map(|k| sky_e[k] + sun_e[k]);
@@ -186,20 +196,33 @@ impl SunSky {
     }
 }
 
-/// Radiance of the sun disc seen through the atmosphere, kcd/m^2, RGB.
-fn sun_radiance(turbidity: f64, theta_s: f64) -> [f64; 3] {
+/// Transmittance of the direct beam at 615, 545 and 465 nm: Rayleigh and aerosol
+/// (Angstrom, beta from turbidity as in Preetham et al.) extinction along the relative air
+/// mass of Kasten and Young (1989).
+fn transmittance(turbidity: f64, theta_s: f64) -> [f64; 3] {
     let z_deg = theta_s.to_degrees().min(90.0);
     let air_mass = 1.0 / (theta_s.cos().max(0.0) + 0.505_72 * (96.079_95 - z_deg).powf(-1.6364));
     let beta = 0.046_08 * turbidity - 0.045_86;
-    let transmittance = [0.615, 0.545, 0.465].map(|lambda: f64| {
+    [0.615, 0.545, 0.465].map(|lambda: f64| {
         let rayleigh = 0.008_735 * lambda.powf(-4.08);
         let aerosol = beta * lambda.powf(-1.3);
         (-(rayleigh + aerosol) * air_mass).exp()
-    });
+    })
+}
+
+/// Share of the light taken from the direct beam that reaches the ground as sky light.
+const DIFFUSE_SHARE: f64 = 0.6;
+
+/// The twilight floor of the sky's level: the sun's cosine counts as at least this much
+/// more (about 0.4 klux of sky light with the sun on the horizon).
+const TWILIGHT: f64 = 0.005;
+
+/// Radiance of the sun disc seen through the atmosphere, kcd/m^2, RGB.
+fn sun_radiance(turbidity: f64, theta_s: f64) -> [f64; 3] {
     let omega = 2.0 * PI * (1.0 - SUN_RADIUS.cos());
     // klux / sr = kcd/m^2
     scale(
-        mul(temperature_rgb(5778.0), transmittance),
+        mul(temperature_rgb(5778.0), transmittance(turbidity, theta_s)),
         SOLAR_ILLUMINANCE / omega,
     )
 }
