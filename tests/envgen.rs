@@ -130,6 +130,18 @@ fn sun_power_is_the_same_at_every_size() {
 }
 
 #[test]
+fn sun_on_the_horizon_shows_half_its_disc() {
+    let with = sky(0.0, 40.0, 3.0);
+    let without = SunSky { sun: false, ..with };
+    let want = with.model().unwrap().sun_disc().power()[0] / 2.0;
+    for (h, w) in [(32, 64), (256, 512)] {
+        let p = power(&with.env(h, w).unwrap())[0] - power(&without.env(h, w).unwrap())[0];
+        // 4096 points, half of them above the horizon to within a point or two
+        assert!((p / want - 1.0).abs() < 2e-3, "{h}x{w}: {p} vs {want}");
+    }
+}
+
+#[test]
 fn sun_to_sky_illuminance_is_realistic() {
     let clear = sky(60.0, 0.0, 2.5).model().unwrap().sun_to_sky();
     let hazy = sky(60.0, 0.0, 8.0).model().unwrap().sun_to_sky();

@@ -199,3 +199,39 @@ pub fn direction(elevation: f64, azimuth: f64) -> [f64; 3] {
     let (st, ct) = (elevation.cos(), elevation.sin());
     [azimuth.cos() * st, ct, azimuth.sin() * st]
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn texel_of_finds_each_texel_centre() {
+        for (h, w) in [(1, 2), (7, 13), (64, 128)] {
+            for i in 0..h * w {
+                let (dir, _) = Convention::Equirect.texel(i / w, i % w, h, w);
+                assert_eq!(texel_of(dir, h, w), i, "{h}x{w}");
+            }
+        }
+    }
+
+    #[test]
+    fn disc_points_lie_on_the_disc_and_spread_evenly() {
+        let disc = Disc {
+            dir: normalize([0.3, 0.8, -0.5]),
+            radius: 0.1,
+            radiance: [1.0; 3],
+        };
+        let (mut inner, mut n) = (0, 0);
+        for p in disc.points() {
+            let angle = dot(p, disc.dir).clamp(-1.0, 1.0).acos();
+            assert!(angle <= 0.1 + 1e-12 && (dot(p, p) - 1.0).abs() < 1e-12);
+            // half the cap's area lies within 1 - cos(rho) = (1 - cos(radius)) / 2
+            if 1.0 - angle.cos() <= (1.0 - 0.1f64.cos()) / 2.0 {
+                inner += 1;
+            }
+            n += 1;
+        }
+        assert_eq!(n, DISC_POINTS);
+        assert_eq!(inner, DISC_POINTS / 2);
+    }
+}
