@@ -35,7 +35,7 @@
 //! - the backends: [`gpu`], [`cpu`], [`reference`](mod@reference);
 //! - beneath them: [`backend`] (the [`Backend`] trait) and [`prepare`] (prepared scenes);
 //! - scene types: [`scene`], [`normals`], [`material`], [`envmap`], [`camera`];
-//!   built-in inputs: [`presets`], [`defaults`];
+//!   built-in inputs: [`presets`], [`defaults`]; procedural lights: [`envgen`];
 //! - at the bottom: [`error`], [`spline`], [`splitmix`].
 
 #![allow(
@@ -49,6 +49,7 @@ pub mod camera;
 pub mod cpu;
 pub mod defaults;
 pub mod edit;
+pub mod envgen;
 pub mod envmap;
 pub mod error;
 pub mod fit;

@@ -3,6 +3,7 @@
 //! several commands share (the scene, the device and threads, outputs, progress, the
 //! failure and its exit code) is in [`shared`]; what a command computes is in the library.
 
+mod env;
 mod fit;
 mod fit_brdf;
 mod grad;
@@ -24,6 +25,7 @@ Examples:
   matedit grad -o grads/ --upstream dloss_dimage.npy
   matedit info sky.exr
   matedit presets
+  matedit env --kind sun-sky --seed 3 -o sky.exr     (a procedural light)
   matedit synth spec.json -o dataset/                (a dataset of rendered samples)
 
 Run `matedit help COMMAND` for a command's options and examples.";
@@ -46,6 +48,9 @@ enum Command {
     /// Differentiate: dLoss/d(env, normals, material) for an upstream dLoss/dImage.
     #[command(after_help = grad::EXAMPLES)]
     Grad(grad::Args),
+    /// Generate a procedural HDR environment map, or turn, expose and white-balance one.
+    #[command(after_help = env::EXAMPLES)]
+    Env(env::Args),
     /// Describe an input file and say what matedit can use it as.
     #[command(after_help = info::EXAMPLES)]
     Info(info::Args),
@@ -76,6 +81,7 @@ impl Cli {
             Command::Render(args) => render::run(args),
             Command::Grad(args) => grad::run(args),
             Command::Info(args) => info::run(args),
+            Command::Env(args) => env::run(args),
             Command::FitBrdf(args) => fit_brdf::run(args),
             Command::Fit(args) => fit::run(args),
             Command::Transfer(args) => transfer::run(args),

@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 
 use super::png::Preview;
 use super::{Format, exr, format_of, npy, png};
+use crate::envmap::EnvMap;
 use crate::error::{Error, Result};
 use crate::scene::Image;
 
@@ -48,6 +49,17 @@ pub fn encode_image(path: &Path, image: &Image, preview: &Preview) -> Result<Vec
         Format::Npy => Ok(npy::encode_rgb(image.width, image.height, &image.pixels)),
         _ => png::encode_preview(image, preview),
     }
+}
+
+/// Writes an environment map to `path` atomically, encoded by its extension as
+/// [`encode_image`] does (a `.png` is a preview under `preview`).
+pub fn write_env(path: &Path, env: &EnvMap, preview: &Preview) -> Result<()> {
+    let image = Image {
+        width: env.width,
+        height: env.height,
+        pixels: env.texels.clone(),
+    };
+    write_atomic(path, &encode_image(path, &image, preview)?)
 }
 
 /// Bytes written to a temporary file beside their destination, not yet in place.
