@@ -8,6 +8,7 @@ mod fit_brdf;
 mod grad;
 mod grid;
 mod info;
+mod normals;
 mod presets;
 mod render;
 mod shared;
@@ -24,6 +25,7 @@ Examples:
   matedit grad -o grads/ --upstream dloss_dimage.npy
   matedit info sky.exr
   matedit presets
+  matedit normals --shape blobby --seed 7 -o blob.png   (a normal map from a shape or mesh)
   matedit synth spec.json -o dataset/                (a dataset of rendered samples)
 
 Run `matedit help COMMAND` for a command's options and examples.";
@@ -64,6 +66,9 @@ enum Command {
     /// Synthesise a dataset: samples drawn from a spec, rendered, written as tar chunks.
     #[command(after_help = synth::EXAMPLES)]
     Synth(synth::Args),
+    /// A normal map and mask from a mesh file or a seeded procedural shape.
+    #[command(after_help = normals::EXAMPLES)]
+    Normals(normals::Args),
     /// List the built-in materials, or print one as a material JSON file.
     #[command(after_help = presets::EXAMPLES)]
     Presets(presets::Args),
@@ -81,6 +86,7 @@ impl Cli {
             Command::Transfer(args) => transfer::run(args),
             Command::Grid(args) => grid::run(args),
             Command::Synth(args) => synth::run(args),
+            Command::Normals(args) => normals::run(args),
             Command::Presets(args) => presets::run(args),
         }
     }
