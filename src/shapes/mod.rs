@@ -43,6 +43,21 @@ pub use mesh::Mesh;
 pub use procedural::{Kind, Shape};
 pub use view::{DEFAULT_MARGIN, Rotation, View};
 
+/// `mesh` as `view`'s camera sees it: positions rotated and fitted to the frame (camera
+/// space: x right, y up, z towards the viewer; the pinhole at the origin), normals rotated
+/// and normalised (the mesh's own, or area-weighted ones). What [`render_normals`] draws.
+pub fn camera_space(mesh: &Mesh, view: &View) -> Result<Mesh> {
+    mesh.validate().map_err(crate::error::Error::Invalid)?;
+    view.validate()?;
+    let placed = view::place(mesh, view)?;
+    let f32s = |v: &[f64; 3]| v.map(|c| c as f32);
+    Ok(Mesh {
+        positions: placed.positions.iter().map(f32s).collect(),
+        normals: Some(placed.normals.iter().map(f32s).collect()),
+        triangles: mesh.triangles.clone(),
+    })
+}
+
 /// The camera-space normals of `mesh` seen through `view`, and the mask of pixels it
 /// covers (rows first). Smooth normals interpolate the vertex normals (the mesh's own, or
 /// area-weighted ones where it has none) with perspective-correct weights and normalise

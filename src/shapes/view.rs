@@ -253,33 +253,66 @@ fn bounds_of(pos: &[V3], used: &[usize], f: impl Fn(V3) -> [f64; 2]) -> ([f64; 2
 const NEAREST: f64 = 0.02;
 
 /// The offset that puts a mesh within the unit ball in front of a pinhole camera, its
-/// projection centred and as large as the half-extents `hx`, `hy` (tangents) allow. The
-/// projection's size goes about as 1 / distance, so a few rounds of "centre, then move
-/// by the ratio of sizes" settle it; the distance never lets the ball reach the camera.
+/// projection centred and as large as the half-extents `hx`, `hy` (tangents) allow.
+/// Moving away shrinks the projection, so the distance is found by bisection between the
+/// nearest allowed (the ball `NEAREST` in front of the camera) and the distance at which
+/// the whole ball fits; at each distance the projection is centred by a few sideways
+/// moves of its box's centre times the distance.
 fn fit_perspective(pos: &[V3], used: &[usize], hx: f64, hy: f64) -> Result<V3> {
-    // start where the bounding sphere itself fits
+    let no_extent = || {
+        invalid!("mesh: seen from this direction it has no extent in the image (a line or a point)")
+    };
+    // (offset, size of the projection over the frame's) at distance d
+    let at = |d: f64| {
+        let mut o = [0.0, 0.0];
+        let mut k = 0.0f64;
+        for _ in 0..8 {
+            k = 0.0;
+            for (axis, half) in [(0, hx), (1, hy)] {
+                // the vertices at either end of the projection on this axis, then the
+                // sideways move that puts them at equal and opposite tangents:
+                // (xa + o) / wa = -(xb + o) / wb
+                let (mut lo, mut hi) = ((f64::INFINITY, 0.0, 1.0), (f64::NEG_INFINITY, 0.0, 1.0));
+                for &v in used {
+                    let w = d - pos[v][2];
+                    let t = (pos[v][axis] + o[axis]) / w;
+                    if t < lo.0 {
+                        lo = (t, pos[v][axis], w);
+                    }
+                    if t > hi.0 {
+                        hi = (t, pos[v][axis], w);
+                    }
+                }
+                k = k.max((hi.0 - lo.0) / 2.0 / half);
+                o[axis] = -(lo.1 * hi.2 + hi.1 * lo.2) / (lo.2 + hi.2);
+            }
+        }
+        ([o[0], o[1], -d], k)
+    };
     let half_angle = hx.atan().min(hy.atan());
-    let mut d = (1.0 / half_angle.sin()).max(1.0 + NEAREST);
-    let (mut ox, mut oy) = (0.0, 0.0);
-    for _ in 0..30 {
-        let (lo, hi) = bounds_of(pos, used, |p| {
-            let w = d - p[2];
-            [(p[0] + ox) / w, (p[1] + oy) / w]
-        });
-        let (cx, cy) = ((lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0);
-        let k = ((hi[0] - lo[0]) / 2.0 / hx).max((hi[1] - lo[1]) / 2.0 / hy);
-        if !(k.is_finite() && k > 0.0) {
-            return Err(invalid!(
-                "mesh: seen from this direction it has no extent in the image (a line or a point)"
-            ));
-        }
-        ox -= cx * d;
-        oy -= cy * d;
-        let next = (d * k).max(1.0 + NEAREST);
-        if (next - d).abs() < 1e-9 * d && cx.abs() + cy.abs() < 1e-9 {
-            break;
-        }
-        d = next;
+    let mut far = (1.0 / half_angle.sin()).max(1.0 + NEAREST);
+    let mut near = 1.0 + NEAREST;
+    let (best, k) = at(near);
+    if !(k.is_finite() && k > 0.0) {
+        return Err(no_extent());
     }
-    Ok([ox, oy, -d])
+    if k <= 1.0 {
+        return Ok(best);
+    }
+    // grow `far` until it fits (the centring can move the ball off the axis)
+    while at(far).1 > 1.0 {
+        far *= 2.0;
+        if far > 1e6 {
+            return Err(no_extent());
+        }
+    }
+    for _ in 0..50 {
+        let mid = 0.5 * (near + far);
+        if at(mid).1 > 1.0 {
+            near = mid;
+        } else {
+            far = mid;
+        }
+    }
+    Ok(at(far).0)
 }
