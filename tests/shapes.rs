@@ -290,6 +290,18 @@ fn obj_text(m: &Mesh, normals: bool) -> String {
     s
 }
 
+/// "x y z" lines, then "3 a b c" lines: the body of ASCII PLY and OFF files.
+fn vertex_and_face_lines(m: &Mesh) -> String {
+    let mut s = String::new();
+    for p in &m.positions {
+        s += &format!("{} {} {}\n", p[0], p[1], p[2]);
+    }
+    for t in &m.triangles {
+        s += &format!("3 {} {} {}\n", t[0], t[1], t[2]);
+    }
+    s
+}
+
 fn ply_ascii(m: &Mesh) -> String {
     let mut s = format!(
         "ply\nformat ascii 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\n\
@@ -297,12 +309,7 @@ fn ply_ascii(m: &Mesh) -> String {
         m.positions.len(),
         m.triangles.len()
     );
-    for p in &m.positions {
-        s += &format!("{} {} {}\n", p[0], p[1], p[2]);
-    }
-    for t in &m.triangles {
-        s += &format!("3 {} {} {}\n", t[0], t[1], t[2]);
-    }
+    s += &vertex_and_face_lines(m);
     s
 }
 
@@ -358,12 +365,7 @@ fn off_text(m: &Mesh) -> String {
         m.positions.len(),
         m.triangles.len()
     );
-    for p in &m.positions {
-        s += &format!("{} {} {}\n", p[0], p[1], p[2]);
-    }
-    for t in &m.triangles {
-        s += &format!("3 {} {} {}\n", t[0], t[1], t[2]);
-    }
+    s += &vertex_and_face_lines(m);
     s
 }
 
