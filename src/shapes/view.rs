@@ -267,6 +267,7 @@ fn fit_perspective(pos: &[V3], used: &[usize], hx: f64, hy: f64) -> Result<V3> {
         let mut o = [0.0, 0.0];
         let mut k = 0.0f64;
         for _ in 0..8 {
+            let mut moved = 0.0f64;
             k = 0.0;
             for (axis, half) in [(0, hx), (1, hy)] {
                 // the vertices at either end of the projection on this axis, then the
@@ -284,7 +285,12 @@ fn fit_perspective(pos: &[V3], used: &[usize], hx: f64, hy: f64) -> Result<V3> {
                     }
                 }
                 k = k.max((hi.0 - lo.0) / 2.0 / half);
-                o[axis] = -(lo.1 * hi.2 + hi.1 * lo.2) / (lo.2 + hi.2);
+                let next = -(lo.1 * hi.2 + hi.1 * lo.2) / (lo.2 + hi.2);
+                moved = moved.max((next - o[axis]).abs());
+                o[axis] = next;
+            }
+            if moved < 1e-12 {
+                break;
             }
         }
         ([o[0], o[1], -d], k)
@@ -306,7 +312,8 @@ fn fit_perspective(pos: &[V3], used: &[usize], hx: f64, hy: f64) -> Result<V3> {
             return Err(no_extent());
         }
     }
-    for _ in 0..50 {
+    // to a millionth of the distance: the projection's size to about as much
+    while far - near > 1e-6 * far {
         let mid = 0.5 * (near + far);
         if at(mid).1 > 1.0 {
             near = mid;
