@@ -245,7 +245,7 @@ fn blobby(d: &mut Draw) -> Mesh {
     let mut terms = Vec::new();
     for l in 1..=degree {
         for m in -(l as i64)..=(l as i64) {
-            terms.push((l, m, d.range(-1.0, 1.0) * 0.55 / l as f64));
+            terms.push((l, m, d.range(-1.0, 1.0) * 1.1 / l as f64));
         }
     }
     sphere_grid(64, 128, |theta, phi| {
