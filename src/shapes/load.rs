@@ -9,7 +9,7 @@ use std::collections::HashMap;
 use std::io::Cursor;
 use std::path::Path;
 
-use super::mesh::Mesh;
+use super::mesh::{Mesh, fan};
 use crate::error::{Error, Result};
 
 /// The extensions [`load_mesh`] reads.
@@ -46,33 +46,6 @@ pub fn mesh_from_bytes(path: &Path, ext: &str, bytes: &[u8]) -> Result<Mesh> {
     .map_err(|m| Error::file(path, m))?;
     mesh.validate().map_err(|m| Error::file(path, m))?;
     Ok(mesh)
-}
-
-/// Splits face `face` (vertex indices as the file has them, from 0) into a triangle fan,
-/// checking each index against `vertices`.
-pub(crate) fn fan(
-    face: usize,
-    indices: &[i64],
-    vertices: usize,
-    out: &mut Vec<[u32; 3]>,
-) -> std::result::Result<(), String> {
-    if indices.len() < 3 {
-        return Err(format!(
-            "face {face}: a face needs at least 3 vertices, this one has {}",
-            indices.len()
-        ));
-    }
-    for &i in indices {
-        if i < 0 || i as u64 >= vertices as u64 {
-            return Err(format!(
-                "face {face}: vertex index {i} out of range ({vertices} vertices)"
-            ));
-        }
-    }
-    for k in 1..indices.len() - 1 {
-        out.push([indices[0], indices[k], indices[k + 1]].map(|i| i as u32));
-    }
-    Ok(())
 }
 
 fn one_line(s: impl ToString) -> String {

@@ -198,6 +198,33 @@ impl Mesh {
     }
 }
 
+/// Splits face `face` (vertex indices as the file has them, from 0) into a triangle fan,
+/// checking each index against `vertices`.
+pub(crate) fn fan(
+    face: usize,
+    indices: &[i64],
+    vertices: usize,
+    out: &mut Vec<[u32; 3]>,
+) -> std::result::Result<(), String> {
+    if indices.len() < 3 {
+        return Err(format!(
+            "face {face}: a face needs at least 3 vertices, this one has {}",
+            indices.len()
+        ));
+    }
+    for &i in indices {
+        if i < 0 || i as u64 >= vertices as u64 {
+            return Err(format!(
+                "face {face}: vertex index {i} out of range ({vertices} vertices)"
+            ));
+        }
+    }
+    for k in 1..indices.len() - 1 {
+        out.push([indices[0], indices[k], indices[k + 1]].map(|i| i as u32));
+    }
+    Ok(())
+}
+
 fn non_finite(v: f32) -> &'static str {
     if v.is_nan() { "NaN" } else { "infinite" }
 }

@@ -7,8 +7,7 @@ use std::io::Cursor;
 use ply_rs_bw::parser::Parser;
 use ply_rs_bw::ply::{DefaultElement, Property};
 
-use super::load::fan;
-use super::mesh::Mesh;
+use super::mesh::{Mesh, fan};
 
 /// A scalar property as f64, or `None` for a list.
 fn scalar(p: &Property) -> Option<f64> {
