@@ -654,3 +654,57 @@ fn normals_face_the_viewer_and_fill_the_frame() {
         }
     }
 }
+
+#[test]
+fn winding_does_not_matter() {
+    // every other triangle wound the other way: the same pixels, smooth (the vertex normals
+    // the shape carries) and flat; an open bowl (the lower half of a sphere) seen from
+    // above shows its inside, with normals facing the viewer
+    let mesh = Shape {
+        kind: Kind::Blobby,
+        seed: None,
+    }
+    .mesh(4);
+    let mut flipped = mesh.clone();
+    for t in flipped.triangles.iter_mut().step_by(2) {
+        t.swap(1, 2);
+    }
+    for flat in [false, true] {
+        for camera in [
+            Camera::Orthographic,
+            Camera::Perspective { fov_y_deg: 45.0 },
+        ] {
+            let view = View {
+                flat,
+                camera,
+                rotation: Rotation::random(9),
+                ..View::new(40, 40)
+            };
+            let a = shapes::render_normals(&mesh, &view).unwrap();
+            let b = shapes::render_normals(&flipped, &view).unwrap();
+            assert!(a == b, "flat {flat}, {camera:?}");
+        }
+    }
+    let mut bowl = tessellate::sphere_grid(16, 32, tessellate::direction);
+    let n_top = bowl.positions.len();
+    bowl.triangles
+        .retain(|t| t.iter().all(|&v| bowl.positions[v as usize][1] <= 1e-6));
+    assert!(bowl.triangles.len() < n_top * 2);
+    let view = View {
+        rotation: Rotation {
+            yaw: 0.0,
+            pitch: 60.0,
+            roll: 0.0,
+        },
+        ..View::new(32, 32)
+    };
+    let (map, mask) = shapes::render_normals(&bowl, &view).unwrap();
+    let centre = map.normals[16 * 32 + 16].map(f64::from);
+    assert!(mask[16 * 32 + 16]);
+    // looking into the bowl: the centre pixel sees the far inside wall, whose outward
+    // normal points away from the viewer; the inside's normal faces it
+    assert!(centre[2] > 0.9, "{centre:?}");
+    for (i, n) in map.normals.iter().enumerate() {
+        assert!(!mask[i] || n[2] >= 0.0, "pixel {i}: {n:?}");
+    }
+}
