@@ -191,7 +191,7 @@ fn bad_input_fails_cleanly() {
     fails(
         d,
         &["--shape", "torus", "--size", "0"],
-        "each side must be between 1 and 16384",
+        "each side must be between 1 and 8192",
     );
     fails(
         d,

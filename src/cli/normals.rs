@@ -62,9 +62,9 @@ pub struct Args {
     mask: Option<PathBuf>,
 }
 
-const SIDE_MAX: usize = 16384;
+const SIDE_MAX: usize = 8192;
 
-/// `--size`: N or HxW, each side in 1..=16384.
+/// `--size`: N or HxW, each side in 1..=8192.
 fn parse_size(s: &str) -> Result<(usize, usize), String> {
     let bad = || format!("size '{s}' is not N or HEIGHTxWIDTH (e.g. 256 or 240x320)");
     let side = |v: &str| v.trim().parse::<usize>().map_err(|_| bad());
