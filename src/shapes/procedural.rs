@@ -336,24 +336,38 @@ mod tests {
 
     #[test]
     fn real_sh_are_orthonormal() {
-        // midpoint rule over the sphere
+        // the Gram matrix of degrees 0 to 4 by the midpoint rule over the sphere
         let (nt, np) = (200, 400);
         let all: Vec<(usize, i64)> = (0..=4)
             .flat_map(|l| (-(l as i64)..=l as i64).map(move |m| (l, m)))
             .collect();
-        for &(l1, m1) in &all {
-            for &(l2, m2) in &all {
-                let mut sum = 0.0;
-                for i in 0..nt {
-                    let t = PI * (i as f64 + 0.5) / nt as f64;
-                    for j in 0..np {
-                        let p = 2.0 * PI * (j as f64 + 0.5) / np as f64;
-                        sum += real_sh(l1, m1, t.cos(), p) * real_sh(l2, m2, t.cos(), p) * t.sin();
+        let mut gram = vec![0.0; all.len() * all.len()];
+        for i in 0..nt {
+            let t = PI * (i as f64 + 0.5) / nt as f64;
+            let w = t.sin() * PI / nt as f64 * 2.0 * PI / np as f64;
+            for j in 0..np {
+                let p = 2.0 * PI * (j as f64 + 0.5) / np as f64;
+                let y: Vec<f64> = all
+                    .iter()
+                    .map(|&(l, m)| real_sh(l, m, t.cos(), p))
+                    .collect();
+                for a in 0..all.len() {
+                    for b in 0..all.len() {
+                        gram[a * all.len() + b] += w * y[a] * y[b];
                     }
                 }
-                sum *= PI / nt as f64 * 2.0 * PI / np as f64;
-                let want = if (l1, m1) == (l2, m2) { 1.0 } else { 0.0 };
-                assert!((sum - want).abs() < 1e-3, "<Y{l1}{m1}, Y{l2}{m2}> = {sum}");
+            }
+        }
+        for a in 0..all.len() {
+            for b in 0..all.len() {
+                let want = if a == b { 1.0 } else { 0.0 };
+                let got = gram[a * all.len() + b];
+                assert!(
+                    (got - want).abs() < 1e-3,
+                    "<Y{:?}, Y{:?}> = {got}",
+                    all[a],
+                    all[b]
+                );
             }
         }
     }
