@@ -196,30 +196,35 @@ fn glb(m: &Mesh) -> Vec<u8> {
     b
 }
 
+/// `m` in every format, by file name; writes the glTF's buffer file `mesh.bin` into `dir`.
+fn format_files(m: &Mesh, dir: &Path) -> Vec<(&'static str, Vec<u8>)> {
+    let buffer = gltf_buffer(m);
+    std::fs::write(dir.join("mesh.bin"), &buffer).unwrap();
+    let data_uri = format!("data:application/octet-stream;base64,{}", base64(&buffer));
+    vec![
+        ("mesh.obj", obj_text(m, false).into_bytes()),
+        ("ascii.ply", ply_ascii(m).into_bytes()),
+        ("binary.ply", ply_binary(m)),
+        ("binary.stl", stl_binary(m)),
+        ("ascii.stl", stl_ascii(m).into_bytes()),
+        ("mesh.off", off_text(m).into_bytes()),
+        (
+            "file.gltf",
+            gltf_json(m, Some("mesh.bin"), buffer.len()).into_bytes(),
+        ),
+        (
+            "embedded.gltf",
+            gltf_json(m, Some(&data_uri), buffer.len()).into_bytes(),
+        ),
+        ("mesh.glb", glb(m)),
+    ]
+}
+
 #[test]
 fn every_format_loads_the_same_mesh() {
     let dir = tempfile::tempdir().unwrap();
     let m = small_mesh();
-    let buffer = gltf_buffer(&m);
-    std::fs::write(dir.path().join("mesh.bin"), &buffer).unwrap();
-    let data_uri = format!("data:application/octet-stream;base64,{}", base64(&buffer));
-    let files: Vec<(&str, Vec<u8>)> = vec![
-        ("mesh.obj", obj_text(&m, false).into_bytes()),
-        ("ascii.ply", ply_ascii(&m).into_bytes()),
-        ("binary.ply", ply_binary(&m)),
-        ("binary.stl", stl_binary(&m)),
-        ("ascii.stl", stl_ascii(&m).into_bytes()),
-        ("mesh.off", off_text(&m).into_bytes()),
-        (
-            "file.gltf",
-            gltf_json(&m, Some("mesh.bin"), buffer.len()).into_bytes(),
-        ),
-        (
-            "embedded.gltf",
-            gltf_json(&m, Some(&data_uri), buffer.len()).into_bytes(),
-        ),
-        ("mesh.glb", glb(&m)),
-    ];
+    let files = format_files(&m, dir.path());
     for flat in [false, true] {
         let view = View {
             flat,
@@ -323,4 +328,35 @@ fn bad_files_give_one_line_errors() {
         .unwrap_err()
         .to_string();
     assert_eq!(e, "/no/such/mesh.obj: no such file");
+}
+
+#[test]
+fn corrupted_files_never_panic() {
+    // every format's file, cut short at many lengths and with bytes overwritten at random:
+    // each load returns a mesh or an error, and an error is one line naming the file
+    let dir = tempfile::tempdir().unwrap();
+    let files = format_files(&small_mesh(), dir.path());
+    let mut rng = matedit::splitmix::SplitMix(11);
+    for (name, bytes) in &files {
+        let path = dir.path().join(name);
+        for trial in 0..120 {
+            let mut b = bytes.clone();
+            if trial % 2 == 0 {
+                b.truncate(rng.below(b.len()));
+            } else {
+                for _ in 0..1 + rng.below(4) {
+                    let at = rng.below(b.len());
+                    b[at] = rng.next_u64() as u8;
+                }
+            }
+            std::fs::write(&path, &b).unwrap();
+            if let Err(e) = shapes::load_mesh(&path) {
+                let e = e.to_string();
+                assert!(
+                    !e.contains('\n') && e.starts_with(&path.display().to_string()),
+                    "{name}: {e}"
+                );
+            }
+        }
+    }
 }
