@@ -17,7 +17,7 @@ Examples:
   matedit normals --shape box --flat -o box.png
   matedit render --normals blob.exr -o blob_render.png
 
-Meshes: .obj, .ply, .stl, .off, .gltf, .glb. Shapes: sphere, blobby, superquadric, torus,
+Meshes: .obj, .ply, .stl, .off (.gltf, .glb with --features gltf). Shapes: sphere, blobby, superquadric, torus,
 capsule, box, cylinder, plate, limb, extrusion, union, random; KIND:seed=N fixes a shape's
 own seed. Outputs: .exr or .npy (float32 n.x, n.y, n.z; background 0), .png (8-bit RGBA,
 v = (n + 1) / 2 * 255, alpha = the mask). See docs/shapes.md.";
@@ -25,7 +25,7 @@ v = (n + 1) / 2 * 255, alpha = the mask). See docs/shapes.md.";
 /// The options of `matedit normals`.
 #[derive(clap::Args)]
 pub struct Args {
-    /// A triangle mesh: .obj, .ply, .stl, .off, .gltf or .glb.
+    /// A triangle mesh: .obj, .ply, .stl, .off (.gltf or .glb when built with --features gltf).
     #[arg(
         long,
         value_name = "FILE",

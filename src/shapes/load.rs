@@ -1,9 +1,9 @@
 //! Mesh files, known by their extension: OBJ (tobj), PLY (ply-rs-bw, ASCII or binary),
-//! STL (stl_io, ASCII or binary), OFF (parsed here) and glTF 2.0 (`.gltf` with its
-//! buffers, `.glb`). Polygons are split into triangle fans. Every error is one line that
-//! names the file and the element: `bunny.obj: line 57: face 12: vertex index 900 out of
-//! range (812 vertices)`. Faces and vertices count from 0, lines from 1; indices are as
-//! the file writes them (OBJ's from 1).
+//! STL (stl_io, ASCII or binary), OFF (parsed here) and, with the `gltf` feature, glTF
+//! 2.0 (`.gltf` with its buffers, `.glb`). Polygons are split into triangle fans. Every
+//! error is one line that names the file and the element: `bunny.obj: line 57: face 12:
+//! vertex index 900 out of range (812 vertices)`. Faces and vertices count from 0, lines
+//! from 1; indices are as the file writes them (OBJ's from 1).
 
 use std::collections::HashMap;
 use std::io::Cursor;
@@ -41,11 +41,21 @@ pub fn mesh_from_bytes(path: &Path, ext: &str, bytes: &[u8]) -> Result<Mesh> {
         "ply" => super::ply::read(bytes),
         "stl" => stl(bytes),
         "off" => off(bytes),
-        _ => super::gltf::read(path, bytes),
+        _ => gltf(path, bytes),
     }
     .map_err(|m| Error::file(path, m))?;
     mesh.validate().map_err(|m| Error::file(path, m))?;
     Ok(mesh)
+}
+
+#[cfg(feature = "gltf")]
+fn gltf(path: &Path, bytes: &[u8]) -> std::result::Result<Mesh, String> {
+    super::gltf::read(path, bytes)
+}
+
+#[cfg(not(feature = "gltf"))]
+fn gltf(_: &Path, _: &[u8]) -> std::result::Result<Mesh, String> {
+    Err("glTF meshes need matedit built with `--features gltf`".into())
 }
 
 fn one_line(s: impl ToString) -> String {

@@ -19,7 +19,7 @@
 //!
 //! Files: [`mesh`] (the mesh type, its checks and vertex normals); [`view`](mod@view)
 //! (camera, rotation, placement); `raster.rs` (the z-buffer); [`load`] (mesh files: OBJ,
-//! PLY, STL, OFF, glTF) with `ply.rs` and `gltf.rs`; [`procedural`] (the shapes) on
+//! PLY, STL, OFF, glTF with the `gltf` feature) with `ply.rs` and `gltf.rs`; [`procedural`] (the shapes) on
 //! [`tessellate`] (the surfaces they are made of).
 
 pub mod load;
@@ -29,6 +29,7 @@ mod raster;
 pub mod tessellate;
 pub mod view;
 
+#[cfg(feature = "gltf")]
 mod gltf;
 mod ply;
 
