@@ -27,6 +27,8 @@
 //! Each layer uses only those beneath it (`tests/layout.rs` checks that no files and no
 //! top-level modules import each other around a circle):
 //!
+//! - [`shapes`]: meshes and procedural shapes rasterised to normal maps (on the scene
+//!   types);
 //! - what uses the renderer: [`edit`] (a material fitted to an image), [`synth`]
 //!   (datasets), [`fit`] (the DSBRDF fitted to measured [`brdf`]s), [`io`] (files in and
 //!   out), [`supersample`] (the continuous light);
@@ -63,6 +65,7 @@ pub mod presets;
 pub mod reference;
 pub mod renderer;
 pub mod scene;
+pub mod shapes;
 pub mod spline;
 pub mod splitmix;
 pub mod supersample;

@@ -9,6 +9,7 @@ mod fit_brdf;
 mod grad;
 mod grid;
 mod info;
+mod normals;
 mod presets;
 mod render;
 mod shared;
@@ -26,6 +27,7 @@ Examples:
   matedit info sky.exr
   matedit presets
   matedit env --kind sun-sky --seed 3 -o sky.exr     (a procedural light)
+  matedit normals --shape blobby --seed 7 -o blob.png   (a normal map from a shape or mesh)
   matedit synth spec.json -o dataset/                (a dataset of rendered samples)
 
 Run `matedit help COMMAND` for a command's options and examples.";
@@ -69,6 +71,9 @@ enum Command {
     /// Synthesise a dataset: samples drawn from a spec, rendered, written as tar chunks.
     #[command(after_help = synth::EXAMPLES)]
     Synth(synth::Args),
+    /// A normal map and mask from a mesh file or a seeded procedural shape.
+    #[command(after_help = normals::EXAMPLES)]
+    Normals(normals::Args),
     /// List the built-in materials, or print one as a material JSON file.
     #[command(after_help = presets::EXAMPLES)]
     Presets(presets::Args),
@@ -87,6 +92,7 @@ impl Cli {
             Command::Transfer(args) => transfer::run(args),
             Command::Grid(args) => grid::run(args),
             Command::Synth(args) => synth::run(args),
+            Command::Normals(args) => normals::run(args),
             Command::Presets(args) => presets::run(args),
         }
     }

@@ -36,8 +36,8 @@ use crate::scene::{BACKGROUND_EPS, Image, NormalMap};
 pub use png::{Preview, Tonemap};
 pub use resample::EnvSize;
 pub use write::{
-    Staged, check_output, check_parent, commit_all, create_dirs, encode_image, remove_created,
-    stage, write_atomic, write_env,
+    Staged, check_output, check_parent, commit_all, create_dirs, encode_image, encode_mask,
+    encode_normals, remove_created, stage, write_atomic, write_env,
 };
 
 /// A 3-channel float raster as read from a file, row-major, row 0 at the top, kept in f64

@@ -1,4 +1,5 @@
-//! PNG files: 8-bit (or 16-bit) normal maps in, 8-bit sRGB previews of linear renders out.
+//! PNG files: 8-bit (or 16-bit) normal maps in, 8-bit sRGB previews of linear renders out,
+//! 8-bit normal maps (RGBA, alpha the mask) and masks out.
 //!
 //! Normal maps: channel value v (0..=255, or 0..=65535 for 16-bit files) encodes
 //! n = 2 v / max - 1. A pixel with alpha 0, or with R = G = B = 0, is background.
@@ -11,7 +12,7 @@ use std::io::Cursor;
 use std::path::Path;
 
 use crate::error::{Error, Result};
-use crate::scene::Image;
+use crate::scene::{Image, NormalMap};
 
 /// How linear radiance is mapped to display values in a preview.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -87,6 +88,42 @@ pub fn encode_preview(image: &Image, preview: &Preview) -> Result<Vec<u8>> {
 
 /// Encodes 8-bit RGB data (row-major, 3 bytes a pixel) as a PNG tagged sRGB.
 pub fn encode_rgb8(width: usize, height: usize, data: &[u8]) -> Result<Vec<u8>> {
+    encode8(width, height, png::ColorType::Rgb, data, true)
+}
+
+/// Encodes a normal map as 8-bit RGBA, v = round((n + 1) / 2 * 255) per channel (the
+/// inverse of the loader's n = 2 v / 255 - 1), alpha 255 where `mask` is set; background
+/// pixels are [0, 0, 0, 0]. Not tagged sRGB: the values are vectors, not colours.
+pub fn encode_normals(map: &NormalMap, mask: &[bool]) -> Result<Vec<u8>> {
+    let data: Vec<u8> = map
+        .normals
+        .iter()
+        .zip(mask)
+        .flat_map(|(n, &fg)| {
+            if fg {
+                let v = n.map(|c| ((c.clamp(-1.0, 1.0) + 1.0) / 2.0 * 255.0).round() as u8);
+                [v[0], v[1], v[2], 255]
+            } else {
+                [0; 4]
+            }
+        })
+        .collect();
+    encode8(map.width, map.height, png::ColorType::Rgba, &data, false)
+}
+
+/// Encodes a mask as an 8-bit greyscale PNG: 255 where set, 0 elsewhere.
+pub fn encode_mask(width: usize, height: usize, mask: &[bool]) -> Result<Vec<u8>> {
+    let data: Vec<u8> = mask.iter().map(|&m| if m { 255 } else { 0 }).collect();
+    encode8(width, height, png::ColorType::Grayscale, &data, false)
+}
+
+fn encode8(
+    width: usize,
+    height: usize,
+    color: png::ColorType,
+    data: &[u8],
+    srgb: bool,
+) -> Result<Vec<u8>> {
     let (w, h) = (
         u32::try_from(width)
             .map_err(|_| Error::Invalid(format!("PNG width {width} is too large")))?,
@@ -95,9 +132,11 @@ pub fn encode_rgb8(width: usize, height: usize, data: &[u8]) -> Result<Vec<u8>> 
     );
     let mut out = Vec::new();
     let mut enc = png::Encoder::new(&mut out, w, h);
-    enc.set_color(png::ColorType::Rgb);
+    enc.set_color(color);
     enc.set_depth(png::BitDepth::Eight);
-    enc.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
+    if srgb {
+        enc.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
+    }
     let mut writer = enc
         .write_header()
         .map_err(|e| Error::Invalid(format!("cannot encode PNG: {e}")))?;

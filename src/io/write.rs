@@ -9,7 +9,7 @@ use super::png::Preview;
 use super::{Format, exr, format_of, npy, png};
 use crate::envmap::EnvMap;
 use crate::error::{Error, Result};
-use crate::scene::Image;
+use crate::scene::{Image, NormalMap};
 
 /// Checks before any work is done that an output can be written to `path`: a known
 /// extension among `allowed` and an existing folder to put it in.
@@ -60,6 +60,34 @@ pub fn write_env(path: &Path, env: &EnvMap, preview: &Preview) -> Result<()> {
         pixels: env.texels.clone(),
     };
     write_atomic(path, &encode_image(path, &image, preview)?)
+}
+
+/// Encodes a normal map for `path` by its extension: `.exr` (float32 RGB = n.x, n.y, n.z),
+/// `.npy` (float32, H x W x 3) or `.png` (8-bit RGBA, alpha 255 where `mask` is set; see
+/// [`png::encode_normals`]). Background pixels are [0, 0, 0] in all three.
+pub fn encode_normals(path: &Path, map: &NormalMap, mask: &[bool]) -> Result<Vec<u8>> {
+    match format_of(path, "the output", &[Format::Exr, Format::Npy, Format::Png])? {
+        Format::Exr => exr::encode_rgb(map.width, map.height, &map.normals),
+        Format::Npy => Ok(npy::encode_rgb(map.width, map.height, &map.normals)),
+        _ => png::encode_normals(map, mask),
+    }
+}
+
+/// Encodes a mask for `path` by its extension: `.png` (8-bit grey, 255 inside), `.npy`
+/// (float32, H x W, 1 inside) or `.exr` (RGB, 1 inside); what [`super::load_mask`] reads.
+pub fn encode_mask(path: &Path, width: usize, height: usize, mask: &[bool]) -> Result<Vec<u8>> {
+    let one = |m: &bool| if *m { 1.0f32 } else { 0.0 };
+    match format_of(path, "the mask", &[Format::Exr, Format::Npy, Format::Png])? {
+        Format::Exr => {
+            let rgb: Vec<[f32; 3]> = mask.iter().map(|m| [one(m); 3]).collect();
+            exr::encode_rgb(width, height, &rgb)
+        }
+        Format::Npy => Ok(npy::encode_f32(
+            &[height, width],
+            &mask.iter().map(one).collect::<Vec<_>>(),
+        )),
+        _ => png::encode_mask(width, height, mask),
+    }
 }
 
 /// Bytes written to a temporary file beside their destination, not yet in place.

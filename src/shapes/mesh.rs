@@ -1,0 +1,279 @@
+//! The triangle mesh: positions, optional per-vertex normals, triangles; its checks, its
+//! vertex normals, and the geometry the rasteriser and the shape generators share.
+
+use crate::error::{Error, Result};
+
+/// A triangle mesh. Triangles index `positions` (and `normals`, which, when given, has one
+/// normal per position). Winding does not matter: the rasteriser turns every normal
+/// towards the viewer.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Mesh {
+    /// Vertex positions.
+    pub positions: Vec<[f32; 3]>,
+    /// Per-vertex normals (any length but 0; normalised where used), one per position.
+    pub normals: Option<Vec<[f32; 3]>>,
+    /// Vertex indices, three per triangle.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+pub(crate) type V3 = [f64; 3];
+
+pub(crate) fn sub(a: V3, b: V3) -> V3 {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+pub(crate) fn add(a: V3, b: V3) -> V3 {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+
+pub(crate) fn scale(a: V3, s: f64) -> V3 {
+    [a[0] * s, a[1] * s, a[2] * s]
+}
+
+pub(crate) fn dot(a: V3, b: V3) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+pub(crate) fn cross(a: V3, b: V3) -> V3 {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+/// `a` / |a|, or `None` where |a| is 0 (or not finite).
+pub(crate) fn unit(a: V3) -> Option<V3> {
+    let len = dot(a, a).sqrt();
+    (len > 0.0 && len.is_finite()).then(|| scale(a, 1.0 / len))
+}
+
+pub(crate) fn widen(p: [f32; 3]) -> V3 {
+    p.map(f64::from)
+}
+
+const AXES: [char; 3] = ['x', 'y', 'z'];
+
+impl Mesh {
+    /// A checked mesh: see [`Mesh::validate`].
+    pub fn new(
+        positions: Vec<[f32; 3]>,
+        normals: Option<Vec<[f32; 3]>>,
+        triangles: Vec<[u32; 3]>,
+    ) -> Result<Self> {
+        let m = Mesh {
+            positions,
+            normals,
+            triangles,
+        };
+        m.validate().map_err(Error::Invalid)?;
+        Ok(m)
+    }
+
+    /// Checks that there is a triangle, that every index is in range, that the vertices
+    /// the triangles use have finite coordinates (and finite normals, when given) and that
+    /// they do not all sit at one point. The message names the first face at fault, e.g.
+    /// `face 12: vertex index 900 out of range (812 vertices)` (faces count from 0);
+    /// loaders put the file's name in front.
+    pub fn validate(&self) -> std::result::Result<(), String> {
+        if self.triangles.is_empty() {
+            return Err("the mesh has no triangles".into());
+        }
+        let n = self.positions.len();
+        if let Some(normals) = &self.normals
+            && normals.len() != n
+        {
+            return Err(format!("{} vertex normals for {n} vertices", normals.len()));
+        }
+        for (f, tri) in self.triangles.iter().enumerate() {
+            for &v in tri {
+                let v = v as usize;
+                if v >= n {
+                    return Err(format!(
+                        "face {f}: vertex index {v} out of range ({n} vertices)"
+                    ));
+                }
+                if let Some(c) = self.positions[v].iter().position(|c| !c.is_finite()) {
+                    return Err(format!(
+                        "face {f}: vertex {v}: coordinate {} is {}",
+                        AXES[c],
+                        non_finite(self.positions[v][c])
+                    ));
+                }
+                if let Some(normals) = &self.normals
+                    && let Some(c) = normals[v].iter().position(|c| !c.is_finite())
+                {
+                    return Err(format!(
+                        "face {f}: vertex {v}: normal component {} is {}",
+                        AXES[c],
+                        non_finite(normals[v][c])
+                    ));
+                }
+            }
+        }
+        let (lo, hi) = self.bounds();
+        if (0..3).all(|k| hi[k] - lo[k] <= 0.0) {
+            return Err(format!(
+                "every vertex is at ({}, {}, {}): the mesh has no extent",
+                lo[0], lo[1], lo[2]
+            ));
+        }
+        Ok(())
+    }
+
+    /// The bounding box (min, max) of the vertices the triangles use.
+    pub fn bounds(&self) -> (V3, V3) {
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        for tri in &self.triangles {
+            for &v in tri {
+                if let Some(p) = self.positions.get(v as usize) {
+                    for k in 0..3 {
+                        lo[k] = lo[k].min(f64::from(p[k]));
+                        hi[k] = hi[k].max(f64::from(p[k]));
+                    }
+                }
+            }
+        }
+        (lo, hi)
+    }
+
+    /// The normals the rasteriser interpolates: the given ones, else [`Mesh::smooth_normals`].
+    pub fn vertex_normals(&self) -> Vec<[f32; 3]> {
+        match &self.normals {
+            Some(n) => n.clone(),
+            None => self.smooth_normals(),
+        }
+    }
+
+    /// Area-weighted vertex normals: each vertex gets the sum of the (unnormalised) face
+    /// normals of the triangles around it, normalised, following the triangles' winding.
+    /// A vertex that no triangle with an area uses gets [0, 0, 0] (the rasteriser then
+    /// takes the face normal).
+    pub fn smooth_normals(&self) -> Vec<[f32; 3]> {
+        let mut sum = vec![[0.0f64; 3]; self.positions.len()];
+        for tri in &self.triangles {
+            let [a, b, c] = tri.map(|v| widen(self.positions[v as usize]));
+            let n = cross(sub(b, a), sub(c, a));
+            for &v in tri {
+                sum[v as usize] = add(sum[v as usize], n);
+            }
+        }
+        sum.into_iter()
+            .map(|n| unit(n).map_or([0.0; 3], |u| u.map(|c| c as f32)))
+            .collect()
+    }
+
+    /// Appends `other`'s triangles and vertices. Normals are kept only if both have them.
+    pub fn append(&mut self, other: &Mesh) {
+        let offset = self.positions.len() as u32;
+        self.normals = match (
+            self.positions.is_empty(),
+            self.normals.take(),
+            &other.normals,
+        ) {
+            (true, _, Some(b)) => Some(b.clone()),
+            (false, Some(mut a), Some(b)) => {
+                a.extend_from_slice(b);
+                Some(a)
+            }
+            _ => None,
+        };
+        self.positions.extend_from_slice(&other.positions);
+        self.triangles
+            .extend(other.triangles.iter().map(|t| t.map(|v| v + offset)));
+    }
+
+    /// The mesh with every position mapped by `p` and every normal by `n`.
+    pub fn transformed(&self, p: impl Fn(V3) -> V3, n: impl Fn(V3) -> V3) -> Mesh {
+        let f32s = |v: V3| v.map(|c| c as f32);
+        Mesh {
+            positions: self.positions.iter().map(|&v| f32s(p(widen(v)))).collect(),
+            normals: self
+                .normals
+                .as_ref()
+                .map(|ns| ns.iter().map(|&v| f32s(n(widen(v)))).collect()),
+            triangles: self.triangles.clone(),
+        }
+    }
+}
+
+/// Splits face `face` (vertex indices as the file has them, from 0) into a triangle fan,
+/// checking each index against `vertices`.
+pub(crate) fn fan(
+    face: usize,
+    indices: &[i64],
+    vertices: usize,
+    out: &mut Vec<[u32; 3]>,
+) -> std::result::Result<(), String> {
+    if indices.len() < 3 {
+        return Err(format!(
+            "face {face}: a face needs at least 3 vertices, this one has {}",
+            indices.len()
+        ));
+    }
+    for &i in indices {
+        if i < 0 || i as u64 >= vertices as u64 {
+            return Err(format!(
+                "face {face}: vertex index {i} out of range ({vertices} vertices)"
+            ));
+        }
+    }
+    for k in 1..indices.len() - 1 {
+        out.push([indices[0], indices[k], indices[k + 1]].map(|i| i as u32));
+    }
+    Ok(())
+}
+
+fn non_finite(v: f32) -> &'static str {
+    if v.is_nan() { "NaN" } else { "infinite" }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tetra() -> Mesh {
+        Mesh {
+            positions: vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+            normals: None,
+            triangles: vec![[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]],
+        }
+    }
+
+    #[test]
+    fn validation_names_the_face() {
+        assert_eq!(tetra().validate(), Ok(()));
+        let mut m = tetra();
+        m.triangles[2][1] = 9;
+        assert_eq!(
+            m.validate(),
+            Err("face 2: vertex index 9 out of range (4 vertices)".into())
+        );
+        let mut m = tetra();
+        m.positions[3][1] = f32::NAN;
+        assert_eq!(
+            m.validate(),
+            Err("face 1: vertex 3: coordinate y is NaN".into())
+        );
+        let mut m = tetra();
+        m.positions = vec![[2.0; 3]; 4];
+        assert!(m.validate().unwrap_err().contains("no extent"));
+        let m = Mesh {
+            triangles: vec![],
+            ..tetra()
+        };
+        assert_eq!(m.validate(), Err("the mesh has no triangles".into()));
+    }
+
+    #[test]
+    fn smooth_normals_point_outwards() {
+        let m = tetra();
+        let n = m.smooth_normals();
+        // vertex 3 (0, 0, 1): faces 1, 2, 3 around it
+        let v = widen(n[3]);
+        assert!(v[2] > 0.5 && (dot(v, v) - 1.0).abs() < 1e-6, "{v:?}");
+        let v0 = widen(n[0]);
+        assert!(v0.iter().all(|&c| c < 0.0), "{v0:?}");
+    }
+}
