@@ -389,12 +389,6 @@ fn bad_specs_fail_before_anything_is_written() {
         (
             "",
             "",
-            &["--shard", "0/4"],
-            &["shard 0/4: the spec makes 3 chunks"],
-        ),
-        (
-            "",
-            "",
             &["--shard", "3/3"],
             &["shard 3/3: I must be below N"],
         ),
@@ -524,4 +518,41 @@ fn gpu_shards_write_the_whole_runs_bytes() {
         }
     }
     assert_eq!(images, 12);
+}
+
+#[test]
+fn a_shard_with_no_chunk_succeeds_and_says_so() {
+    // an array job of 4 tasks over a spec of 3 chunks: task 3 has nothing to write
+    let t = dir();
+    std::fs::create_dir_all(t.path().join("envs")).unwrap();
+    write_sky(&t.path().join("envs/a.exr"), 16, 32);
+    let spec = t.path().join("spec.json");
+    std::fs::write(
+        &spec,
+        r#"{"count": 12, "image_size": 16, "env_size": "8x16", "chunk_size": 4,
+           "normals": [{"sphere": 16}], "envs": ["envs/a.exr"],
+           "materials": [{"preset": "gold"}]}"#,
+    )
+    .unwrap();
+    let out = t.path().join("ds");
+    let o = synth_cmd(&spec, &out, &["--shard", "3/4"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("shard 3/4: no chunk to write (the spec makes 3 chunks"),
+        "{err}"
+    );
+    assert!(!out.join("chunk-000000.tar").exists());
+    // the other tasks still write every chunk
+    for i in 0..3 {
+        let o = synth_cmd(&spec, &out, &["--shard", &format!("{i}/4")])
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    for c in 0..3 {
+        assert!(out.join(format!("chunk-{c:06}.tar")).exists());
+    }
 }

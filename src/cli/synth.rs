@@ -84,6 +84,17 @@ pub fn run(args: &Args) -> Result<(), Failure> {
     synth::check(&spec, &args.output, shard, &engine.label)?;
     eprintln!("matedit: device: {}", engine.renderer.describe());
     let mine = shard.chunks(spec.chunks()).count() as u64 * spec.chunk_size;
+    if mine == 0 {
+        // an array job with more tasks than chunks: this task succeeds with nothing to do
+        let total = spec.chunks();
+        eprintln!(
+            "matedit: synth: shard {shard}: no chunk to write (the spec makes {total} chunk{}, \
+             shards {total}/{n} on have none); nothing written",
+            if total == 1 { "" } else { "s" },
+            n = shard.count,
+        );
+        return Ok(());
+    }
     let bar = progress_bar(
         mine,
         "{prefix} {bar:30} {pos}/{len} samples {elapsed} (eta {eta})",
