@@ -556,3 +556,62 @@ fn a_shard_with_no_chunk_succeeds_and_says_so() {
         assert!(out.join(format!("chunk-{c:06}.tar")).exists());
     }
 }
+
+#[test]
+fn shapes_and_procedural_lights_are_sources_and_shards_agree() {
+    // procedural shapes (parameters and rotation drawn per sample) and procedural lights
+    // (parameters drawn per sample), perspective: the shards write the whole run's bytes
+    let t = dir();
+    let spec = t.path().join("spec.json");
+    std::fs::write(
+        &spec,
+        r#"{"count": 6, "seed": 3, "image_size": 24, "env_size": "16x32", "chunk_size": 2,
+           "fov": 40,
+           "normals": [{"shape": "blobby"}, {"shape": "union"}],
+           "envs": [{"procedural": "sun-sky"}, {"procedural": "studio"}],
+           "materials": [{"preset": "gold"}]}"#,
+    )
+    .unwrap();
+    let whole = t.path().join("whole");
+    synth_cmd(&spec, &whole, &[]).assert().success();
+    let split = t.path().join("split");
+    for i in [1, 0, 2] {
+        synth_cmd(&spec, &split, &["--shard", &format!("{i}/3")])
+            .assert()
+            .success();
+    }
+    assert!(data(&whole) == data(&split), "the shards wrote other bytes");
+    let sp = synth::Spec::load(&spec).unwrap();
+    let (mut shapes, mut lights) = (Vec::new(), Vec::new());
+    for k in 0..6 {
+        let x = sp.sample(k).unwrap();
+        assert!(x.params["normals"]["shape_seed"].is_u64(), "{}", x.params);
+        assert!(x.params["normals"]["rotation"].is_array());
+        assert!(x.params["env"]["procedural"].is_string());
+        // some pixels are the object and some background
+        let fg = x.scene.normals.normals.iter().filter(|n| n[2] > 0.0).count();
+        assert!(fg > 24 && fg < 24 * 24, "sample {k}: {fg} foreground pixels");
+        assert!(x.scene.env.texels.iter().flatten().all(|v| v.is_finite() && *v >= 0.0));
+        shapes.push(x.scene.normals.normals.clone());
+        lights.push(x.scene.env.texels.clone());
+    }
+    // each sample its own draw
+    assert!(shapes.windows(2).all(|w| w[0] != w[1]));
+    assert!(lights.windows(2).all(|w| w[0] != w[1]));
+    // bad kinds: one line naming the item
+    for (key, value, expect) in [
+        ("normals", r#"[{"shape": "blobb"}]"#, "normals[0]: shape:"),
+        ("envs", r#"[{"procedural": "sunny"}]"#, "envs[0]: procedural:"),
+    ] {
+        let mut v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&spec).unwrap()).unwrap();
+        v[key] = serde_json::from_str(value).unwrap();
+        let bad = t.path().join("bad.json");
+        std::fs::write(&bad, v.to_string()).unwrap();
+        let o = synth_cmd(&bad, &t.path().join("bad"), &[]).output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        assert!(err.contains(expect), "{err}");
+        assert_eq!(err.trim().lines().count(), 1, "{err}");
+    }
+}

@@ -55,6 +55,22 @@ impl Spec {
                     json!({ "bumpy": [h, w], "bumpy_seed": seed }),
                 )
             }
+            NormalsSource::Shape(shape) => {
+                let seed = rng.next_u64();
+                let rotation = crate::shapes::Rotation::random(rng.next_u64());
+                let view = crate::shapes::View {
+                    camera: self.camera,
+                    rotation,
+                    ..crate::shapes::View::new(w, h)
+                };
+                let (m, _) = crate::shapes::render_normals(&shape.mesh(seed), &view)?;
+                let p = json!({
+                    "shape": shape.to_string(),
+                    "shape_seed": seed,
+                    "rotation": [rotation.yaw, rotation.pitch, rotation.roll],
+                });
+                (m, p)
+            }
             NormalsSource::Files(maps) => {
                 let (label, m) = &maps[rng.below(maps.len())];
                 (m.clone(), json!({ "file": label }))
@@ -63,14 +79,26 @@ impl Spec {
 
         let ei = pick(&mut rng, &self.envs);
         let src = &self.envs[ei].source;
-        let (label, map) = &src.maps[rng.below(src.maps.len())];
-        let shift = if src.rotate { rng.below(map.width) } else { 0 };
-        let env = rotate(map, shift);
-        let eparams = json!({
-            "file": label,
-            "rotate_columns": shift,
-            "rotate_degrees": shift as f64 * 360.0 / map.width as f64,
-        });
+        let (env, eparams) = match src.procedural {
+            Some(kind) => {
+                let seed = rng.next_u64();
+                let drawn = crate::envgen::Params::draw(kind, seed);
+                let (eh, ew) = self.env_size;
+                let p =
+                    json!({ "procedural": kind.name(), "seed": seed, "params": drawn.to_string() });
+                (drawn.env(eh, ew)?, p)
+            }
+            None => {
+                let (label, map) = &src.maps[rng.below(src.maps.len())];
+                let shift = if src.rotate { rng.below(map.width) } else { 0 };
+                let p = json!({
+                    "file": label,
+                    "rotate_columns": shift,
+                    "rotate_degrees": shift as f64 * 360.0 / map.width as f64,
+                });
+                (rotate(map, shift), p)
+            }
+        };
 
         let mi = pick(&mut rng, &self.materials);
         let (material, mparams) = match &self.materials[mi].source {

@@ -24,6 +24,7 @@ pub const MAX_MIX: usize = 16;
 struct RawNormals {
     sphere: Option<Value>,
     bumpy: Option<Value>,
+    shape: Option<String>,
     file: Option<String>,
     folder: Option<String>,
     weight: Option<f64>,
@@ -32,6 +33,7 @@ struct RawNormals {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawEnv {
+    procedural: Option<String>,
     file: Option<String>,
     folder: Option<String>,
     rotate: Option<bool>,
@@ -55,6 +57,9 @@ pub enum NormalsSource {
     Sphere(NormalMap),
     /// [`NormalMap::bumpy`] at the image size, its seed drawn per sample.
     Bumpy,
+    /// A procedural shape ([`crate::shapes::Shape`]), its parameters and a uniformly random
+    /// rotation drawn per sample, drawn with the spec's camera at the image size.
+    Shape(crate::shapes::Shape),
     /// Normal-map files (one, or a folder's), each with its name as the spec gives it.
     Files(Vec<(String, NormalMap)>),
 }
@@ -62,8 +67,12 @@ pub enum NormalsSource {
 /// Where a sample's lighting comes from.
 #[derive(Clone, Debug)]
 pub struct EnvSource {
-    /// The maps at the spec's env size, each with its name as the spec gives it.
+    /// The maps at the spec's env size, each with its name as the spec gives it (none for
+    /// a procedural light).
     pub maps: Vec<(String, EnvMap)>,
+    /// A procedural light ([`crate::envgen`]) generated per sample at the env size, its
+    /// parameters drawn per sample.
+    pub procedural: Option<crate::envgen::Kind>,
     /// Whether each sample turns its map about the vertical axis by a random whole number
     /// of columns.
     pub rotate: bool,
@@ -182,6 +191,7 @@ pub(super) fn normals(
             Value::String(s) => RawNormals {
                 sphere: None,
                 bumpy: None,
+                shape: None,
                 file: Some(s.clone()),
                 folder: None,
                 weight: None,
@@ -194,8 +204,9 @@ pub(super) fn normals(
                 r.bumpy.is_some(),
                 r.file.is_some(),
                 r.folder.is_some(),
+                r.shape.is_some(),
             ],
-            &["sphere", "bumpy", "file", "folder"],
+            &["sphere", "bumpy", "file", "folder", "shape"],
         )
         .map_err(at)?;
         let weight = weight(r.weight).map_err(at)?;
@@ -224,6 +235,10 @@ pub(super) fn normals(
                 size_of("bumpy", r.bumpy.as_ref().unwrap_or(&Value::Null))?;
                 NormalsSource::Bumpy
             }
+            4 => {
+                let spec = r.shape.as_deref().unwrap_or_default();
+                NormalsSource::Shape(spec.parse().map_err(|e| at(format!("shape: {e}")))?)
+            }
             _ => {
                 let files = files_of(base, r.file, r.folder, &["exr", "npy", "png"]).map_err(at)?;
                 let mut maps = Vec::with_capacity(files.len());
@@ -248,6 +263,25 @@ pub(super) fn normals(
     Ok(normals)
 }
 
+/// A `{"procedural": KIND}` item: an `envgen` kind, under the equirect convention.
+fn procedural(
+    name: Option<&str>,
+    convention: Convention,
+) -> std::result::Result<EnvSource, String> {
+    let kind = name
+        .unwrap_or_default()
+        .parse()
+        .map_err(|e| format!("procedural: {e}"))?;
+    if convention != Convention::Equirect {
+        return Err("procedural: lights are generated under the equirect convention".into());
+    }
+    Ok(EnvSource {
+        maps: Vec::new(),
+        procedural: Some(kind),
+        rotate: false,
+    })
+}
+
 /// The spec's `envs` list, loaded (every map brought to `env_size`) and hashed; errors
 /// name the item.
 pub(super) fn envs(
@@ -263,6 +297,7 @@ pub(super) fn envs(
         let at = |m: String| err(format!("envs[{i}]: {m}"));
         let r = match item {
             Value::String(s) => RawEnv {
+                procedural: None,
                 file: Some(s.clone()),
                 folder: None,
                 rotate: None,
@@ -270,8 +305,19 @@ pub(super) fn envs(
             },
             _ => serde_json::from_value(item.clone()).map_err(|e| at(serde_message(&e)))?,
         };
-        one_of(&[r.file.is_some(), r.folder.is_some()], &["file", "folder"]).map_err(at)?;
+        let kind = one_of(
+            &[r.file.is_some(), r.folder.is_some(), r.procedural.is_some()],
+            &["file", "folder", "procedural"],
+        )
+        .map_err(at)?;
         let weight = weight(r.weight).map_err(at)?;
+        if kind == 2 {
+            envs.push(Weighted {
+                weight,
+                source: procedural(r.procedural.as_deref(), convention).map_err(at)?,
+            });
+            continue;
+        }
         let files = files_of(base, r.file, r.folder, &["exr", "npy"]).map_err(at)?;
         let mut maps = Vec::with_capacity(files.len());
         for f in files {
@@ -292,6 +338,7 @@ pub(super) fn envs(
             weight,
             source: EnvSource {
                 maps,
+                procedural: None,
                 rotate: r.rotate.unwrap_or(true),
             },
         });
