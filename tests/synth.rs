@@ -589,9 +589,25 @@ fn shapes_and_procedural_lights_are_sources_and_shards_agree() {
         assert!(x.params["normals"]["rotation"].is_array());
         assert!(x.params["env"]["procedural"].is_string());
         // some pixels are the object and some background
-        let fg = x.scene.normals.normals.iter().filter(|n| n[2] > 0.0).count();
-        assert!(fg > 24 && fg < 24 * 24, "sample {k}: {fg} foreground pixels");
-        assert!(x.scene.env.texels.iter().flatten().all(|v| v.is_finite() && *v >= 0.0));
+        let fg = x
+            .scene
+            .normals
+            .normals
+            .iter()
+            .filter(|n| n[2] > 0.0)
+            .count();
+        assert!(
+            fg > 24 && fg < 24 * 24,
+            "sample {k}: {fg} foreground pixels"
+        );
+        assert!(
+            x.scene
+                .env
+                .texels
+                .iter()
+                .flatten()
+                .all(|v| v.is_finite() && *v >= 0.0)
+        );
         shapes.push(x.scene.normals.normals.clone());
         lights.push(x.scene.env.texels.clone());
     }
@@ -601,14 +617,20 @@ fn shapes_and_procedural_lights_are_sources_and_shards_agree() {
     // bad kinds: one line naming the item
     for (key, value, expect) in [
         ("normals", r#"[{"shape": "blobb"}]"#, "normals[0]: shape:"),
-        ("envs", r#"[{"procedural": "sunny"}]"#, "envs[0]: procedural:"),
+        (
+            "envs",
+            r#"[{"procedural": "sunny"}]"#,
+            "envs[0]: procedural:",
+        ),
     ] {
         let mut v: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(&spec).unwrap()).unwrap();
         v[key] = serde_json::from_str(value).unwrap();
         let bad = t.path().join("bad.json");
         std::fs::write(&bad, v.to_string()).unwrap();
-        let o = synth_cmd(&bad, &t.path().join("bad"), &[]).output().unwrap();
+        let o = synth_cmd(&bad, &t.path().join("bad"), &[])
+            .output()
+            .unwrap();
         let err = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(2), "{err}");
         assert!(err.contains(expect), "{err}");

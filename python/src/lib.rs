@@ -497,6 +497,72 @@ fn sky<'py>(
     stack(py, false, height, width, vec![&env.texels[..]])
 }
 
+/// (H, W, 3) normals and an (H, W) mask.
+type NormalsAndMask<'py> = (Bound<'py, PyArrayDyn<f32>>, Bound<'py, PyArrayDyn<bool>>);
+
+/// Normals and mask of a procedural shape (`shape`, e.g. "blobby" or "torus:seed=3") or a
+/// mesh file (`mesh`), as `matedit normals` draws them: (H, W, 3) float32 normals (0 on the
+/// background) and an (H, W) bool mask. `rotate` is (yaw, pitch, roll) in degrees; without
+/// it `seed` draws a uniformly random rotation (and a shape's parameters).
+#[pyfunction]
+#[pyo3(signature = (shape = None, mesh = None, height = 256, width = 256, fov = None, rotate = None, seed = 0, flat = false))]
+#[allow(clippy::too_many_arguments)]
+fn shape_normals<'py>(
+    py: Python<'py>,
+    shape: Option<&str>,
+    mesh: Option<PathBuf>,
+    height: usize,
+    width: usize,
+    fov: Option<f64>,
+    rotate: Option<(f64, f64, f64)>,
+    seed: u64,
+    flat: bool,
+) -> PyResult<NormalsAndMask<'py>> {
+    use matedit::shapes::{Rotation, Shape, View};
+    let m = match (shape, mesh) {
+        (Some(s), None) => s
+            .parse::<Shape>()
+            .map_err(|e| invalid(format!("shape: {e}")))?
+            .mesh(seed),
+        (None, Some(p)) => matedit::shapes::load_mesh(&p).map_err(py_err)?,
+        _ => return Err(invalid("give one of shape= and mesh=".to_string())),
+    };
+    let rotation = match rotate {
+        Some((yaw, pitch, roll)) => Rotation { yaw, pitch, roll },
+        None => Rotation::random(seed),
+    };
+    let view = View {
+        camera: match fov {
+            Some(fov_y_deg) => Camera::Perspective { fov_y_deg },
+            None => Camera::Orthographic,
+        },
+        rotation,
+        flat,
+        ..View::new(width, height)
+    };
+    let (n, mask) = matedit::shapes::render_normals(&m, &view).map_err(py_err)?;
+    let mask = Array::from_shape_vec(IxDyn(&[height, width]), mask)
+        .map_err(|e| PyRuntimeError::new_err(e.to_string()))?
+        .into_pyarray(py);
+    Ok((stack(py, false, height, width, vec![&n.normals[..]])?, mask))
+}
+
+/// A procedural HDR light (`kind`: "sun-sky", "overcast", "studio" or "indoor"), its
+/// parameters drawn from `seed`, as `matedit env` makes it: (height, width, 3) float32.
+#[pyfunction]
+#[pyo3(signature = (kind, seed = 0, height = 64, width = 128))]
+fn procedural_env<'py>(
+    py: Python<'py>,
+    kind: &str,
+    seed: u64,
+    height: usize,
+    width: usize,
+) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
+    let kind: matedit::envgen::Kind = kind.parse().map_err(|e| invalid(format!("kind: {e}")))?;
+    let env = matedit::envgen::generate(kind, seed, height, width).map_err(py_err)?;
+    stack(py, false, height, width, vec![&env.texels[..]])
+}
+
 fn synth_engine(device: &str) -> PyResult<matedit::synth::Engine> {
     let d: Device = device
         .parse()
@@ -609,6 +675,8 @@ fn _matedit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(bumpy, m)?)?;
     m.add_function(wrap_pyfunction!(random_material, m)?)?;
     m.add_function(wrap_pyfunction!(sky, m)?)?;
+    m.add_function(wrap_pyfunction!(shape_normals, m)?)?;
+    m.add_function(wrap_pyfunction!(procedural_env, m)?)?;
     m.add_function(wrap_pyfunction!(synth, m)?)?;
     m.add_function(wrap_pyfunction!(synth_check, m)?)?;
     m.add_function(wrap_pyfunction!(synth_verify, m)?)?;
