@@ -589,13 +589,7 @@ fn shapes_and_procedural_lights_are_sources_and_shards_agree() {
         assert!(x.params["normals"]["rotation"].is_array());
         assert!(x.params["env"]["procedural"].is_string());
         // some pixels are the object and some background
-        let fg = x
-            .scene
-            .normals
-            .normals
-            .iter()
-            .filter(|n| n[2] > 0.0)
-            .count();
+        let fg = foreground(&x.scene.normals);
         assert!(
             fg > 24 && fg < 24 * 24,
             "sample {k}: {fg} foreground pixels"
@@ -636,4 +630,64 @@ fn shapes_and_procedural_lights_are_sources_and_shards_agree() {
         assert!(err.contains(expect), "{err}");
         assert_eq!(err.trim().lines().count(), 1, "{err}");
     }
+}
+
+#[test]
+fn meshes_are_a_source_turned_per_sample() {
+    // a folder of two small meshes (a tetrahedron as OBJ, the same as OFF): each sample
+    // picks one and turns it; shards agree with the whole run; a bad mesh names the item
+    let t = dir();
+    let meshes = t.path().join("meshes");
+    std::fs::create_dir_all(&meshes).unwrap();
+    std::fs::write(
+        meshes.join("tet.obj"),
+        "v 1 1 1\nv -1 -1 1\nv -1 1 -1\nv 1 -1 -1\nf 1 2 3\nf 1 4 2\nf 1 3 4\nf 2 4 3\n",
+    )
+    .unwrap();
+    std::fs::write(
+        meshes.join("tet.off"),
+        "OFF\n4 4 0\n1 1 1\n-1 -1 1\n-1 1 -1\n1 -1 -1\n3 0 1 2\n3 0 3 1\n3 0 2 3\n3 1 3 2\n",
+    )
+    .unwrap();
+    let spec = t.path().join("spec.json");
+    let body = |normals: &str| {
+        format!(
+            r#"{{"count": 4, "seed": 5, "image_size": 20, "env_size": "8x16", "chunk_size": 2,
+               "normals": [{normals}], "envs": [{{"procedural": "overcast"}}],
+               "materials": [{{"preset": "gold"}}]}}"#
+        )
+    };
+    std::fs::write(&spec, body(r#"{"mesh": "meshes"}"#)).unwrap();
+    let whole = t.path().join("whole");
+    synth_cmd(&spec, &whole, &[]).assert().success();
+    let split = t.path().join("split");
+    for i in [1, 0] {
+        synth_cmd(&spec, &split, &["--shard", &format!("{i}/2")])
+            .assert()
+            .success();
+    }
+    assert!(data(&whole) == data(&split), "the shards wrote other bytes");
+    let sp = synth::Spec::load(&spec).unwrap();
+    for k in 0..4 {
+        let x = sp.sample(k).unwrap();
+        let label = x.params["normals"]["mesh"].as_str().unwrap().to_string();
+        assert!(label.starts_with("meshes/tet."), "{label}");
+        let fg = foreground(&x.scene.normals);
+        assert!(fg > 20, "sample {k}: {fg} foreground pixels");
+    }
+    std::fs::write(meshes.join("bad.obj"), "v 0 0 0\nf 1 2 3\n").unwrap();
+    let o = synth_cmd(&spec, &t.path().join("bad"), &[])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("normals[0]") && err.contains("bad.obj"),
+        "{err}"
+    );
+}
+
+/// Pixels of a normal map that face the viewer (the object, not the background).
+fn foreground(n: &matedit::NormalMap) -> usize {
+    n.normals.iter().filter(|v| v[2] > 0.0).count()
 }

@@ -57,16 +57,19 @@ impl Spec {
             }
             NormalsSource::Shape(shape) => {
                 let seed = rng.next_u64();
-                let rotation = crate::shapes::Rotation::random(rng.next_u64());
-                let view = crate::shapes::View {
-                    camera: self.camera,
-                    rotation,
-                    ..crate::shapes::View::new(w, h)
-                };
-                let (m, _) = crate::shapes::render_normals(&shape.mesh(seed), &view)?;
+                let (m, rotation) = self.draw_mesh(&shape.mesh(seed), &mut rng)?;
                 let p = json!({
                     "shape": shape.to_string(),
                     "shape_seed": seed,
+                    "rotation": [rotation.yaw, rotation.pitch, rotation.roll],
+                });
+                (m, p)
+            }
+            NormalsSource::Meshes(meshes) => {
+                let (label, mesh) = &meshes[rng.below(meshes.len())];
+                let (m, rotation) = self.draw_mesh(mesh, &mut rng)?;
+                let p = json!({
+                    "mesh": label,
                     "rotation": [rotation.yaw, rotation.pitch, rotation.roll],
                 });
                 (m, p)
@@ -133,6 +136,25 @@ impl Spec {
             },
             params,
         })
+    }
+}
+
+impl Spec {
+    /// `mesh`'s normals at the image size under the spec's camera, turned by a uniformly
+    /// random rotation drawn from `rng`.
+    fn draw_mesh(
+        &self,
+        mesh: &crate::shapes::Mesh,
+        rng: &mut SplitMix,
+    ) -> Result<(NormalMap, crate::shapes::Rotation)> {
+        let rotation = crate::shapes::Rotation::random(rng.next_u64());
+        let (w, h) = self.image_size;
+        let view = crate::shapes::View {
+            camera: self.camera,
+            rotation,
+            ..crate::shapes::View::new(w, h)
+        };
+        Ok((crate::shapes::render_normals(mesh, &view)?.0, rotation))
     }
 }
 

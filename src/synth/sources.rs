@@ -25,6 +25,7 @@ struct RawNormals {
     sphere: Option<Value>,
     bumpy: Option<Value>,
     shape: Option<String>,
+    mesh: Option<String>,
     file: Option<String>,
     folder: Option<String>,
     weight: Option<f64>,
@@ -60,6 +61,9 @@ pub enum NormalsSource {
     /// A procedural shape ([`crate::shapes::Shape`]), its parameters and a uniformly random
     /// rotation drawn per sample, drawn with the spec's camera at the image size.
     Shape(crate::shapes::Shape),
+    /// Mesh files (one, or a folder's), each with its name as the spec gives it: one
+    /// picked and turned by a uniformly random rotation per sample, drawn as a shape is.
+    Meshes(Vec<(String, crate::shapes::Mesh)>),
     /// Normal-map files (one, or a folder's), each with its name as the spec gives it.
     Files(Vec<(String, NormalMap)>),
 }
@@ -192,6 +196,7 @@ pub(super) fn normals(
                 sphere: None,
                 bumpy: None,
                 shape: None,
+                mesh: None,
                 file: Some(s.clone()),
                 folder: None,
                 weight: None,
@@ -205,8 +210,9 @@ pub(super) fn normals(
                 r.file.is_some(),
                 r.folder.is_some(),
                 r.shape.is_some(),
+                r.mesh.is_some(),
             ],
-            &["sphere", "bumpy", "file", "folder", "shape"],
+            &["sphere", "bumpy", "file", "folder", "shape", "mesh"],
         )
         .map_err(at)?;
         let weight = weight(r.weight).map_err(at)?;
@@ -238,6 +244,18 @@ pub(super) fn normals(
             4 => {
                 let spec = r.shape.as_deref().unwrap_or_default();
                 NormalsSource::Shape(spec.parse().map_err(|e| at(format!("shape: {e}")))?)
+            }
+            5 => {
+                let exts = ["obj", "ply", "stl", "off", "gltf", "glb"];
+                let files =
+                    files_of(base, r.mesh, None, &exts).map_err(|m| at(format!("mesh: {m}")))?;
+                let mut meshes = Vec::with_capacity(files.len());
+                for f in files {
+                    let m = crate::shapes::load_mesh(&f.path).map_err(|e| at(e.to_string()))?;
+                    hash_file(hasher, &f.label, &f.path).map_err(|e| at(e.to_string()))?;
+                    meshes.push((f.label, m));
+                }
+                NormalsSource::Meshes(meshes)
             }
             _ => {
                 let files = files_of(base, r.file, r.folder, &["exr", "npy", "png"]).map_err(at)?;
