@@ -691,3 +691,14 @@ fn meshes_are_a_source_turned_per_sample() {
 fn foreground(n: &matedit::NormalMap) -> usize {
     n.normals.iter().filter(|v| v[2] > 0.0).count()
 }
+
+#[test]
+fn the_contact_sheets_spec_loads_and_draws() {
+    // docs/synth/sheet.json, as examples/synth_sheet reads it: needs no file
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/synth/sheet.json");
+    let spec = synth::Spec::load(&path).unwrap();
+    assert_eq!(spec.count, 24);
+    let x = spec.sample(3).unwrap();
+    assert!(x.params["env"]["procedural"].is_string(), "{}", x.params);
+    assert!(foreground(&x.scene.normals) > 0);
+}
