@@ -105,14 +105,7 @@ fn gradients_are_the_adjoint() {
         height: 40,
         pixels: (0..n).map(|i| [1.0, (i % 7) as f32 / 7.0, 0.5]).collect(),
     };
-    let loss = |b: &Batch| -> f64 {
-        render(&r, b, light)
-            .pixels
-            .iter()
-            .zip(&up.pixels)
-            .map(|(p, u)| (0..3).map(|k| f64::from(p[k] * u[k])).sum::<f64>())
-            .sum()
-    };
+    let loss = |b: &Batch| -> f64 { inner(&render(&r, b, light).pixels, &up.pixels) };
     let g = supersample::backward(
         &r,
         &b,
@@ -226,16 +219,7 @@ fn gradients_with_a_detail_map_are_the_adjoint() {
             .map(|i| [0.3 + (i % 7) as f32 * 0.1, 1.0, -0.5 + (i % 3) as f32 * 0.2])
             .collect(),
     };
-    let loss: f64 = image
-        .pixels
-        .iter()
-        .zip(&up.pixels)
-        .map(|(p, u)| {
-            (0..3)
-                .map(|k| f64::from(p[k]) * f64::from(u[k]))
-                .sum::<f64>()
-        })
-        .sum();
+    let loss = inner(&image.pixels, &up.pixels);
     let g = supersample::backward(
         &r,
         &b,
@@ -249,16 +233,7 @@ fn gradients_with_a_detail_map_are_the_adjoint() {
     .0
     .remove(0);
     let env = &b.scenes()[0].env;
-    let dot: f64 = g
-        .d_env
-        .iter()
-        .zip(&env.texels)
-        .map(|(d, l)| {
-            (0..3)
-                .map(|k| f64::from(d[k]) * f64::from(l[k]))
-                .sum::<f64>()
-        })
-        .sum();
+    let dot = inner(&g.d_env, &env.texels);
     assert!((dot - loss).abs() <= 1e-4 * loss.abs(), "{dot} vs {loss}");
 }
 
@@ -300,4 +275,16 @@ fn a_chosen_level_is_within_its_tolerance_of_the_finest_on_every_pixel() {
             );
         }
     }
+}
+
+/// sum over elements and channels of a * b, in f64.
+fn inner(a: &[[f32; 3]], b: &[[f32; 3]]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| {
+            (0..3)
+                .map(|k| f64::from(x[k]) * f64::from(y[k]))
+                .sum::<f64>()
+        })
+        .sum()
 }

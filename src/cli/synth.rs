@@ -81,7 +81,7 @@ pub fn run(args: &Args) -> Result<(), Failure> {
         return Ok(());
     }
     let shard = args.shard;
-    synth::check(&spec, &args.output, shard, &engine.label)?;
+    synth::check_output(&spec, &args.output, &engine.label)?;
     eprintln!("matedit: device: {}", engine.renderer.describe());
     let mine = shard.chunks(spec.chunks()).count() as u64 * spec.chunk_size;
     if mine == 0 {

@@ -342,20 +342,21 @@ impl<'a> Trial<'a> {
         })
     }
 
-    /// The estimated error of `method`'s image alone, on the per-pixel sample.
-    fn image_error(&self, method: &Method) -> Result<f64> {
-        let truth = &self.pixels;
-        let plan = Plan::new(
+    /// `method`'s plan on `truth`'s sample.
+    fn plan_on<'t>(&self, truth: &'t Truth, method: &Method) -> Result<Plan<'t>> {
+        Plan::new(
             self.backend,
             &truth.sample,
             &self.scene.env,
             method,
             &self.full.pixels,
-        )?;
-        Ok(rel(
-            &plan.forward(self.backend)?.pixels,
-            &truth.image.pixels,
-        ))
+        )
+    }
+
+    /// The estimated error of `method`'s image alone, on the per-pixel sample.
+    fn image_error(&self, method: &Method) -> Result<f64> {
+        let image = self.plan_on(&self.pixels, method)?.forward(self.backend)?;
+        Ok(rel(&image.pixels, &self.pixels.image.pixels))
     }
 
     /// The estimate of `method`; the gradients' only if the image's is within `tol`.
@@ -365,13 +366,7 @@ impl<'a> Trial<'a> {
         } else {
             &self.pixels
         };
-        let plan = Plan::new(
-            self.backend,
-            &truth.sample,
-            &self.scene.env,
-            method,
-            &self.full.pixels,
-        )?;
+        let plan = self.plan_on(truth, method)?;
         let image = plan.forward(self.backend)?;
         let mut e = Estimate {
             image: rel(&image.pixels, &truth.image.pixels),

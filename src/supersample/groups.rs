@@ -47,10 +47,8 @@ fn split_of(
     q: u32,
     max_split: usize,
 ) -> Option<Key> {
-    let len = prepare::dot(p.n, p.n).sqrt();
-    let n = p.n.map(|v| v / len);
-    let c = prepare::dot(n, p.wp);
-    if c <= 0.0 || q == 0 {
+    let (n, c) = facing(p)?;
+    if q == 0 {
         return None;
     }
     let sigma = lobe_width(ctrl, c)?;
@@ -63,7 +61,7 @@ fn split_of(
         return None;
     }
     let radius = ((WIDTHS * sigma / texel + 0.5).ceil() as usize).min(MAX_RADIUS);
-    let (row, col) = peak_texel(env, p)?;
+    let (row, col) = mirror_texel(env, p, n, c);
     Some(Key {
         cell: (row / CELL, col / CELL),
         split,
@@ -71,21 +69,30 @@ fn split_of(
     })
 }
 
-/// The texel (row, column) of a pixel's specular peak, the mirror direction of w_p about
-/// its normal; `None` where the normal faces away from the viewer.
-pub fn peak_texel(env: &EnvMap, p: &PixelRec) -> Option<(usize, usize)> {
+/// A pixel's unit normal and cos(theta_d) = n.w_p at its peak (h = n); `None` where the
+/// normal faces away from the viewer.
+fn facing(p: &PixelRec) -> Option<([f64; 3], f64)> {
     let len = prepare::dot(p.n, p.n).sqrt();
     let n = p.n.map(|v| v / len);
     let c = prepare::dot(n, p.wp);
-    if c.is_nan() || c <= 0.0 {
-        return None;
-    }
+    (c > 0.0).then_some((n, c))
+}
+
+/// The texel (row, column) of a pixel's specular peak, the mirror direction of w_p about
+/// its normal; `None` where the normal faces away from the viewer.
+pub fn peak_texel(env: &EnvMap, p: &PixelRec) -> Option<(usize, usize)> {
+    let (n, c) = facing(p)?;
+    Some(mirror_texel(env, p, n, c))
+}
+
+/// The texel of the mirror direction 2 c n - w_p.
+fn mirror_texel(env: &EnvMap, p: &PixelRec, n: [f64; 3], c: f64) -> (usize, usize) {
     let r = [0, 1, 2].map(|k| 2.0 * c * n[k] - p.wp[k]);
     let theta = r[1].clamp(-1.0, 1.0).acos();
     let phi = r[2].atan2(r[0]).rem_euclid(2.0 * PI);
     let row = ((theta / PI * env.height as f64) as usize).min(env.height - 1);
     let col = ((phi / (2.0 * PI) * env.width as f64) as usize).min(env.width - 1);
-    Some((row, col))
+    (row, col)
 }
 
 /// What a group shares: the cell of texels its peaks are in, the split and the radius.

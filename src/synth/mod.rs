@@ -191,17 +191,10 @@ pub fn render_chunk(
     tar::encode(&samples)
 }
 
-/// Checks before anything is written that shard `shard` of `spec` can run into `dir` with
-/// `renderer`: `dir` a folder (or missing) holding no other dataset. A shard may have no
-/// chunk to write (more shards than chunks, as an array job sized for a larger spec): it
-/// then writes nothing but the manifest of the chunks present ([`Summary::chunks_written`]
-/// is 0 and [`Shard::chunks`] empty).
-pub fn check(spec: &Spec, dir: &Path, _shard: Shard, renderer: &str) -> Result<()> {
-    check_output(spec, dir, renderer)
-}
-
 /// Runs one shard into `dir` (created if missing): writes its chunks that are not yet
-/// complete, then the manifest. `progress` is told of each sample rendered or skipped.
+/// complete, then the manifest. A shard may have no chunk to write (more shards than
+/// chunks, as an array job sized for a larger spec): it then writes only the manifest of
+/// the chunks present ([`Summary::chunks_written`] is 0). `progress` is told of each sample rendered or skipped.
 pub fn run(
     spec: &Spec,
     dir: &Path,
@@ -209,7 +202,7 @@ pub fn run(
     engine: &Engine,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Summary> {
-    check(spec, dir, shard, &engine.label)?;
+    check_output(spec, dir, &engine.label)?;
     let start = Instant::now();
     let created = crate::io::create_dirs(dir)?;
     let result = run_chunks(spec, dir, shard, engine, progress, start);
