@@ -1,8 +1,9 @@
 //! The contact sheet of synthesised samples in the README and docs/synth.md: the samples of
 //! a `matedit synth` spec (default docs/synth/sheet.json: procedural shapes and a few bumpy
-//! surfaces under the four kinds of procedural light, random MERL materials, perspective),
-//! each rendered as `matedit synth` renders it, scaled so that its 98th-percentile object
-//! pixel shows at 0.8, then clamped and sRGB-encoded; background black.
+//! surfaces under the four kinds of procedural light, random perturbed MERL materials,
+//! perspective, the map behind the object), each made as `matedit synth` makes it (the
+//! render over its background), scaled so that its 98th-percentile object pixel shows at
+//! 0.8, then clamped and sRGB-encoded.
 //!
 //! `cargo run --release --example synth_sheet -- [SPEC] [OUT] [COLUMNS]` writes OUT
 //! (default docs/synth/sheet.png), COLUMNS samples a row (default 8).
@@ -32,18 +33,15 @@ fn main() -> matedit::Result<()> {
     };
     for k in 0..spec.count {
         let sample = spec.sample(k)?;
-        let fg: Vec<bool> = sample
-            .scene
-            .normals
-            .normals
-            .iter()
-            .map(|n| n.iter().any(|&v| v != 0.0))
-            .collect();
-        let image = renderer.render(&Batch::single(sample.scene)?)?.remove(0);
+        let render = renderer
+            .render(&Batch::single(sample.scene.clone())?)?
+            .remove(0);
+        let image = sample.compose(render);
+        let fg = &sample.mask;
         let mut values: Vec<f32> = image
             .pixels
             .iter()
-            .zip(&fg)
+            .zip(fg)
             .filter(|(_, f)| **f)
             .map(|(p, _)| p[0].max(p[1]).max(p[2]))
             .collect();

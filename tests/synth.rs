@@ -8,6 +8,9 @@
 
 use std::path::{Path, PathBuf};
 
+mod common;
+use common::{npy_rgb, synth_cmd};
+
 use assert_cmd::cargo::cargo_bin_cmd;
 use matedit::io::{self, npy};
 use matedit::synth::{self, tar};
@@ -68,13 +71,6 @@ fn small_spec(root: &Path) -> PathBuf {
     spec
 }
 
-fn synth_cmd(spec: &Path, out: &Path, extra: &[&str]) -> assert_cmd::Command {
-    let mut cmd = matedit();
-    cmd.args(["synth", s(spec), "-o", s(out), "--device", "cpu"]);
-    cmd.args(extra);
-    cmd
-}
-
 /// Every data file (chunk tars and records) of a dataset folder with its bytes.
 fn data(dir: &Path) -> Vec<(String, Vec<u8>)> {
     synth::data_files(dir)
@@ -128,9 +124,10 @@ fn the_documented_spec_works_as_written() {
         matedit::synth::spec::hex(&<sha2::Sha256 as sha2::Digest>::digest(&bytes))
     );
     let members = tar::decode(&bytes).unwrap();
-    assert_eq!(members.len(), 12 * 5);
+    assert_eq!(members.len(), 12 * 6);
     assert_eq!(members[0].0, "00000000.env.npy");
-    assert_eq!(members[59].0, "00000011.params.json");
+    assert_eq!(members[2].0, "00000000.mask.npy");
+    assert_eq!(members[71].0, "00000011.params.json");
     // both normal sources, both materials drawn; every sample's map turned by its own amount
     let params: Vec<serde_json::Value> = members
         .iter()
@@ -142,11 +139,16 @@ fn the_documented_spec_works_as_written() {
             params.iter().map(|p| p[key].as_u64().unwrap()).collect();
         assert_eq!(items.len(), 2, "{key}: {items:?}");
     }
-    let shifts: std::collections::BTreeSet<u64> = params
+    let turns: Vec<f64> = params
         .iter()
-        .map(|p| p["env"]["rotate_columns"].as_u64().unwrap())
+        .map(|p| p["env"]["turn_degrees"].as_f64().unwrap())
         .collect();
-    assert!(shifts.len() > 3, "{shifts:?}");
+    assert!(turns.iter().all(|t| (0.0..360.0).contains(t)), "{turns:?}");
+    // any angle, not whole columns (5.625 degrees here)
+    assert!(
+        turns.iter().any(|t| (t / 5.625).fract().abs() > 1e-6),
+        "{turns:?}"
+    );
     assert_eq!(params[5]["index"], 5);
     assert_eq!(params[5]["seed"], 7);
     assert_eq!(params[5]["env"]["file"], "sky.exr");
@@ -246,15 +248,6 @@ fn a_killed_run_resumes_and_ends_identical() {
 }
 
 /// The f32 array of an .npy member as RGB triples, with its (height, width).
-fn rgb(bytes: &[u8]) -> (usize, usize, Vec<[f32; 3]>) {
-    let a = npy::parse(bytes).unwrap();
-    let px = a
-        .data
-        .chunks_exact(3)
-        .map(|c| [c[0] as f32, c[1] as f32, c[2] as f32])
-        .collect();
-    (a.shape[0], a.shape[1], px)
-}
 
 #[test]
 fn every_image_is_a_render_of_its_recorded_inputs() {
@@ -270,7 +263,7 @@ fn every_image_is_a_render_of_its_recorded_inputs() {
             continue;
         }
         let members = tar::decode(&std::fs::read(&tar_path).unwrap()).unwrap();
-        for sample in members.chunks(5) {
+        for sample in members.chunks(6) {
             let get = |suffix: &str| {
                 let (n, b) = sample.iter().find(|(n, _)| n.ends_with(suffix)).unwrap();
                 (n.clone(), b.clone())
@@ -278,9 +271,15 @@ fn every_image_is_a_render_of_its_recorded_inputs() {
             let key = get("params.json").0.split('.').next().unwrap().to_string();
             let params: serde_json::Value = serde_json::from_slice(&get("params.json").1).unwrap();
             kinds.insert(params["normals_item"].to_string() + &params["material_item"].to_string());
-            let (h, w, normals) = rgb(&get("normals.npy").1);
-            let (eh, ew, texels) = rgb(&get("env.npy").1);
-            let (_, _, image) = rgb(&get("image.npy").1);
+            let (h, w, normals) = npy_rgb(&get("normals.npy").1);
+            let (eh, ew, texels) = npy_rgb(&get("env.npy").1);
+            let (_, _, image) = npy_rgb(&get("image.npy").1);
+            // the mask marks the object: the pixels whose normal is not zero
+            let mask = npy::parse(&get("mask.npy").1).unwrap();
+            assert_eq!(mask.shape, [h, w]);
+            for (m, n) in mask.data.iter().zip(&normals) {
+                assert_eq!(*m == 1.0, *n != [0.0; 3]);
+            }
             let sample_dir = t.path().join(&key);
             std::fs::create_dir_all(&sample_dir).unwrap();
             let mat_path = sample_dir.join("material.json");
@@ -316,7 +315,7 @@ fn every_image_is_a_render_of_its_recorded_inputs() {
                 .arg(&mat_path)
                 .assert()
                 .success();
-            let (_, _, rendered) = rgb(&std::fs::read(&render_out).unwrap());
+            let (_, _, rendered) = npy_rgb(&std::fs::read(&render_out).unwrap());
             assert!(
                 rendered == image,
                 "sample {key}: `matedit render` gives other bits"
@@ -508,8 +507,8 @@ fn gpu_shards_write_the_whole_runs_bytes() {
         assert_eq!(ng, nc);
         if ng.ends_with(".image.npy") {
             images += 1;
-            let (_, _, pg) = rgb(dg);
-            let (_, _, pc) = rgb(dc);
+            let (_, _, pg) = npy_rgb(dg);
+            let (_, _, pc) = npy_rgb(dc);
             let peak = pc.iter().flatten().fold(0.0f32, |m, v| m.max(v.abs()));
             assert!(peak > 0.0, "{ng}: a black image");
             for (x, y) in pg.iter().flatten().zip(pc.iter().flatten()) {

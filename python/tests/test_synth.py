@@ -69,7 +69,8 @@ def test_ray_shards_write_the_whole_runs_bytes(tmp_path, local_ray):
     assert manifest["complete"] and manifest["count"] == 12
     with tarfile.open(tmp_path / "ray" / manifest["chunks"][1]["file"]) as t:
         names = t.getnames()
-        assert names[:5] == [f"00000004.{m}" for m in manifest["members"]]
+        assert names[:6] == [f"00000004.{m}" for m in manifest["members"]]
+        mask = np.load(io.BytesIO(t.extractfile("00000004.mask.npy").read()))
         image = np.load(io.BytesIO(t.extractfile("00000004.image.npy").read()))
         normals = np.load(io.BytesIO(t.extractfile("00000004.normals.npy").read()))
         env = np.load(io.BytesIO(t.extractfile("00000004.env.npy").read()))
@@ -77,6 +78,7 @@ def test_ray_shards_write_the_whole_runs_bytes(tmp_path, local_ray):
         params = json.loads(t.extractfile("00000004.params.json").read())
     assert image.shape == (16, 16, 3) and env.shape == (8, 16, 3) and ctrl.shape == (108,)
     assert params["index"] == 4 and params["seed"] == 11
+    assert mask.shape == (16, 16) and np.array_equal(mask == 1, np.any(normals != 0, axis=-1))
     # the image is a render of the recorded inputs
     again = matedit.render(normals, env, ctrl, device="cpu")
     assert np.array_equal(again, image)

@@ -23,7 +23,7 @@ render.png, compare.png, loss.png, normals.npy, target.exr and report.json (psnr
 /// The options of `matedit fit`.
 #[derive(clap::Args)]
 pub struct Args {
-    /// The image to fit: .exr or .npy (linear RGB, H x W x 3) or .png (sRGB, decoded to linear).
+    /// The image to fit: .exr or .npy (linear RGB, H x W x 3), .png or .jpg (sRGB, decoded to linear).
     #[arg(long, value_name = "FILE")]
     image: PathBuf,
     /// The object's normals (as for `render`), the image's size.

@@ -198,7 +198,13 @@ pub fn describe(path: &Path) -> Result<String> {
     let format = super::format_of(
         path,
         "the file",
-        &[Format::Exr, Format::Npy, Format::Png, Format::Json],
+        &[
+            Format::Exr,
+            Format::Npy,
+            Format::Png,
+            Format::Json,
+            Format::Jpeg,
+        ],
     )?;
     // Fail early, and with the plain message, for a missing or unreadable file.
     let bytes = super::read_bytes(path)?;
@@ -298,6 +304,14 @@ pub fn describe(path: &Path) -> Result<String> {
             Err(e) => return Ok(unusable(out, e)),
         },
         Format::Json => describe_json(&mut out, path, &bytes),
+        Format::Jpeg => match super::image_from_bytes(path, &bytes) {
+            Ok(image) => {
+                let _ = writeln!(out, "format: JPEG, 8-bit sRGB");
+                let _ = writeln!(out, "size: {} x {} (W x H)", image.width, image.height);
+                let _ = writeln!(out, "usable as: an image to fit to or edit, a background");
+            }
+            Err(e) => return Ok(unusable(out, e)),
+        },
     }
     Ok(out)
 }

@@ -17,6 +17,7 @@
 pub mod exr;
 pub mod info;
 pub mod job;
+pub mod jpeg;
 pub mod json;
 pub mod manifest;
 pub mod npy;
@@ -63,6 +64,8 @@ pub enum Format {
     Png,
     /// JSON (`.json`).
     Json,
+    /// JPEG (`.jpg`, `.jpeg`): photos, read only.
+    Jpeg,
 }
 
 impl Format {
@@ -74,6 +77,7 @@ impl Format {
             "npy" => Some(Format::Npy),
             "png" => Some(Format::Png),
             "json" => Some(Format::Json),
+            "jpg" | "jpeg" => Some(Format::Jpeg),
             _ => None,
         }
     }
@@ -85,6 +89,7 @@ impl Format {
             Format::Npy => ".npy",
             Format::Png => ".png",
             Format::Json => ".json",
+            Format::Jpeg => ".jpg",
         }
     }
 }
@@ -129,6 +134,8 @@ fn read_as(path: &Path, what: &str, allowed: &[Format]) -> Result<Vec<u8>> {
 
 const RASTERS: &[Format] = &[Format::Exr, Format::Npy];
 const IMAGES: &[Format] = &[Format::Exr, Format::Npy, Format::Png];
+/// Images to fit to, to edit, or to show behind an object: photos too.
+const PHOTOS: &[Format] = &[Format::Exr, Format::Npy, Format::Png, Format::Jpeg];
 
 /// Reads an H x W x 3 float raster from an EXR or NPY file.
 pub fn read_raster(path: &Path, what: &str) -> Result<Raster> {
@@ -283,30 +290,49 @@ pub fn env_from_bytes(path: &Path, bytes: &[u8], convention: Convention) -> Resu
     Ok(LoadedEnv { env, clamped })
 }
 
-/// Loads an image to fit to: EXR or NPY (linear RGB, H x W x 3, every value finite) or PNG
-/// (8 or 16 bits, sRGB-decoded to linear; grey is replicated, alpha ignored).
+/// Loads an image to fit to: EXR or NPY (linear RGB, H x W x 3, every value finite), PNG
+/// (8 or 16 bits) or JPEG, both sRGB-decoded to linear (grey is replicated, alpha ignored).
 pub fn load_image(path: &Path) -> Result<Image> {
-    let format = format_of(path, "an image", IMAGES)?;
-    let (width, height, pixels) = if format == Format::Png {
-        let d = png::decode(path)?;
-        let max = d.max_value();
-        let pixels = d
-            .samples
-            .chunks_exact(d.channels)
-            .map(|p| {
-                let rgb = if d.channels >= 3 {
-                    [p[0], p[1], p[2]]
-                } else {
-                    [p[0]; 3]
-                };
-                rgb.map(|v| png::srgb_decode(v as f32 / max as f32))
-            })
-            .collect();
-        (d.width, d.height, pixels)
-    } else {
-        let r = read_raster(path, "an image")?;
-        let pixels = to_f32(path, &r, |c, row| format!("pixel (column {c}, row {row})"))?;
-        (r.width, r.height, pixels)
+    image_from_bytes(path, &read_as(path, "an image", PHOTOS)?)
+}
+
+/// [`load_image`] on a file's bytes: `path` names the file in errors and its extension
+/// says the format.
+pub fn image_from_bytes(path: &Path, bytes: &[u8]) -> Result<Image> {
+    let (width, height, pixels) = match format_of(path, "an image", PHOTOS)? {
+        Format::Png => {
+            let d = png::decode_bytes(path, bytes)?;
+            let max = d.max_value();
+            let pixels = d
+                .samples
+                .chunks_exact(d.channels)
+                .map(|p| {
+                    let rgb = if d.channels >= 3 {
+                        [p[0], p[1], p[2]]
+                    } else {
+                        [p[0]; 3]
+                    };
+                    rgb.map(|v| png::srgb_decode(v as f32 / max as f32))
+                })
+                .collect();
+            (d.width, d.height, pixels)
+        }
+        Format::Jpeg => {
+            let (w, h, rgb) = jpeg::decode_bytes(path, bytes)?;
+            let lut: Vec<f32> = (0..=255u8)
+                .map(|v| png::srgb_decode(f32::from(v) / 255.0))
+                .collect();
+            let pixels = rgb
+                .chunks_exact(3)
+                .map(|p| [lut[p[0] as usize], lut[p[1] as usize], lut[p[2] as usize]])
+                .collect();
+            (w, h, pixels)
+        }
+        _ => {
+            let r = raster_from_bytes(path, bytes, "an image")?;
+            let pixels = to_f32(path, &r, |c, row| format!("pixel (column {c}, row {row})"))?;
+            (r.width, r.height, pixels)
+        }
     };
     Ok(Image {
         width,

@@ -3,10 +3,10 @@
 
 use serde_json::{Value, json};
 
+use super::augment::Views;
 use super::sources::{MaterialSource, NormalsSource, Weighted};
 use super::spec::Spec;
 use crate::camera::Camera;
-use crate::envmap::EnvMap;
 use crate::error::{Error, Result};
 use crate::material::{Material, N_PARAMS};
 use crate::scene::{NormalMap, Scene};
@@ -19,6 +19,10 @@ pub struct Sample {
     pub index: u64,
     /// What is rendered.
     pub scene: Scene,
+    /// Where the object is: the pixels whose normal is not the background's zero.
+    pub mask: Vec<bool>,
+    /// What is seen elsewhere (`None`: black).
+    pub background: Option<Vec<[f32; 3]>>,
     /// The draws: sources, rotation, mixing weights, seed and index (JSON).
     pub params: Value,
 }
@@ -55,9 +59,9 @@ impl Spec {
                     json!({ "bumpy": [h, w], "bumpy_seed": seed }),
                 )
             }
-            NormalsSource::Shape(shape) => {
+            NormalsSource::Shape(shape, views) => {
                 let seed = rng.next_u64();
-                let (m, rotation) = self.draw_mesh(&shape.mesh(seed), &mut rng)?;
+                let (m, rotation) = self.draw_mesh(&shape.mesh(seed), views, &mut rng)?;
                 let p = json!({
                     "shape": shape.to_string(),
                     "shape_seed": seed,
@@ -65,9 +69,9 @@ impl Spec {
                 });
                 (m, p)
             }
-            NormalsSource::Meshes(meshes) => {
+            NormalsSource::Meshes(meshes, views) => {
                 let (label, mesh) = &meshes[rng.below(meshes.len())];
-                let (m, rotation) = self.draw_mesh(mesh, &mut rng)?;
+                let (m, rotation) = self.draw_mesh(mesh, views, &mut rng)?;
                 let p = json!({
                     "mesh": label,
                     "rotation": [rotation.yaw, rotation.pitch, rotation.roll],
@@ -82,7 +86,7 @@ impl Spec {
 
         let ei = pick(&mut rng, &self.envs);
         let src = &self.envs[ei].source;
-        let (env, eparams) = match src.procedural {
+        let (env, mut eparams) = match src.procedural {
             Some(kind) => {
                 let seed = rng.next_u64();
                 let drawn = crate::envgen::Params::draw(kind, seed);
@@ -93,21 +97,33 @@ impl Spec {
             }
             None => {
                 let (label, map) = &src.maps[rng.below(src.maps.len())];
-                let shift = if src.rotate { rng.below(map.width) } else { 0 };
-                let p = json!({
-                    "file": label,
-                    "rotate_columns": shift,
-                    "rotate_degrees": shift as f64 * 360.0 / map.width as f64,
-                });
-                (rotate(map, shift), p)
+                (map.clone(), json!({ "file": label }))
             }
         };
+        let (env, changes) = src.augment.apply(env, &mut rng)?;
+        merge(&mut eparams, changes);
 
         let mi = pick(&mut rng, &self.materials);
-        let (material, mparams) = match &self.materials[mi].source {
+        let item = &self.materials[mi].source;
+        let (material, mut mparams) = match &item.source {
             MaterialSource::Fixed(m, p) => (Material::clone(m), p.clone()),
             MaterialSource::RandomMerl { mix } => random_merl(&mut rng, *mix)?,
         };
+        let material = match &item.perturb {
+            None => material,
+            Some(p) => {
+                let (m, record) = super::perturb::apply(&material, &p.draw(&mut rng))?;
+                merge(&mut mparams, json!({ "perturb": record }));
+                m
+            }
+        };
+
+        let mask: Vec<bool> = normals.normals.iter().map(|n| *n != [0.0f32; 3]).collect();
+        let bi = pick(&mut rng, &self.backgrounds);
+        let (background, bparams) =
+            self.backgrounds[bi]
+                .source
+                .draw(&env, self.camera, self.image_size, &mut rng);
 
         let params = json!({
             "index": k,
@@ -118,6 +134,8 @@ impl Spec {
             "env_item": ei,
             "material": mparams,
             "material_item": mi,
+            "background": bparams,
+            "background_item": bi,
             "image_size": [h, w],
             "env_size": [self.env_size.0, self.env_size.1],
             "convention": self.convention.name(),
@@ -128,6 +146,8 @@ impl Spec {
         });
         Ok(Sample {
             index: k,
+            mask,
+            background,
             scene: Scene {
                 normals,
                 env,
@@ -140,14 +160,15 @@ impl Spec {
 }
 
 impl Spec {
-    /// `mesh`'s normals at the image size under the spec's camera, turned by a uniformly
-    /// random rotation drawn from `rng`.
+    /// `mesh`'s normals at the image size under the spec's camera, turned by a rotation
+    /// of `views` drawn from `rng`.
     fn draw_mesh(
         &self,
         mesh: &crate::shapes::Mesh,
+        views: &Views,
         rng: &mut SplitMix,
     ) -> Result<(NormalMap, crate::shapes::Rotation)> {
-        let rotation = crate::shapes::Rotation::random(rng.next_u64());
+        let rotation = views.draw(rng);
         let (w, h) = self.image_size;
         let view = crate::shapes::View {
             camera: self.camera,
@@ -155,6 +176,28 @@ impl Spec {
             ..crate::shapes::View::new(w, h)
         };
         Ok((crate::shapes::render_normals(mesh, &view)?.0, rotation))
+    }
+}
+
+impl Sample {
+    /// The sample's image from the layer's render of its scene: the render where the mask
+    /// is set, the background elsewhere (the render itself when the background is black).
+    pub fn compose(&self, mut render: crate::scene::Image) -> crate::scene::Image {
+        if let Some(bg) = &self.background {
+            for ((p, b), m) in render.pixels.iter_mut().zip(bg).zip(&self.mask) {
+                if !m {
+                    *p = *b;
+                }
+            }
+        }
+        render
+    }
+}
+
+/// Adds `extra`'s keys to the object `into`.
+fn merge(into: &mut Value, extra: Value) {
+    if let (Some(o), Value::Object(e)) = (into.as_object_mut(), extra) {
+        o.extend(e);
     }
 }
 
@@ -172,24 +215,6 @@ fn pick<T>(rng: &mut SplitMix, items: &[Weighted<T>]) -> usize {
         u -= item.weight;
     }
     items.len() - 1
-}
-
-/// The map turned about the vertical axis: column c is the source's column (c + shift)
-/// mod width, exactly.
-pub fn rotate(env: &EnvMap, shift: usize) -> EnvMap {
-    let (h, w) = (env.height, env.width);
-    let mut texels = Vec::with_capacity(h * w);
-    for r in 0..h {
-        let row = &env.texels[r * w..(r + 1) * w];
-        texels.extend_from_slice(&row[shift % w..]);
-        texels.extend_from_slice(&row[..shift % w]);
-    }
-    EnvMap {
-        height: h,
-        width: w,
-        convention: env.convention,
-        texels,
-    }
 }
 
 /// `mix` distinct fitted MERL presets with weights uniform on the simplex (the gaps
@@ -228,17 +253,6 @@ fn random_merl(rng: &mut SplitMix, mix: usize) -> Result<(Material, Value)> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::envmap::Convention;
-
-    #[test]
-    fn rotation_is_a_column_shift() {
-        let texels: Vec<[f32; 3]> = (0..2 * 4).map(|i| [i as f32; 3]).collect();
-        let env = EnvMap::new(2, 4, Convention::Equirect, texels).unwrap();
-        let r = rotate(&env, 1);
-        let col0: Vec<f32> = r.texels.iter().map(|t| t[0]).collect();
-        assert_eq!(col0, [1.0, 2.0, 3.0, 0.0, 5.0, 6.0, 7.0, 4.0]);
-        assert_eq!(rotate(&env, 0), env);
-    }
 
     #[test]
     fn draws_are_per_sample() {

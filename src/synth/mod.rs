@@ -18,9 +18,12 @@
 //! bytes); `chunk.rs` (a chunk's file, its record, the check that skips it); [`shard`];
 //! this file (the engine, running a shard, verifying, the manifest).
 
+pub mod augment;
+pub mod background;
 mod chunk;
 pub mod draw;
 mod files;
+pub mod perturb;
 pub mod shard;
 pub mod sources;
 pub mod spec;
@@ -43,7 +46,7 @@ pub use shard::Shard;
 pub use spec::Spec;
 
 /// The `format` of `manifest.json` and of the chunk records.
-pub const FORMAT: &str = "matedit-synth 1";
+pub const FORMAT: &str = "matedit-synth 2";
 
 /// A renderer and the name of what it computes: samples record it, and a chunk made by
 /// another renderer is not taken as done.
@@ -178,6 +181,7 @@ pub fn render_chunk(
             .render(&batch)
             .map_err(|e| Error::Invalid(format!("sample {k}: {e}")))?
             .remove(0);
+        let image = sample.compose(image);
         let members = tar::members(&sample, &image, &engine.label);
         progress(1);
         Ok((format!("{k:0width$}"), members))

@@ -8,7 +8,9 @@ use serde::Deserialize;
 use serde_json::{Value, json};
 use sha2::Sha256;
 
+use super::augment::{EnvAugment, Views};
 use super::files::{files_of, hash_file};
+use super::perturb::Perturb;
 use crate::envmap::{Convention, EnvMap};
 use crate::error::{Error, Result};
 use crate::io::resample::{self, EnvSize};
@@ -28,6 +30,7 @@ struct RawNormals {
     mesh: Option<String>,
     file: Option<String>,
     folder: Option<String>,
+    views: Option<Value>,
     weight: Option<f64>,
 }
 
@@ -38,6 +41,8 @@ struct RawEnv {
     file: Option<String>,
     folder: Option<String>,
     rotate: Option<bool>,
+    exposure: Option<[f64; 2]>,
+    white_balance: Option<[f64; 2]>,
     weight: Option<f64>,
 }
 
@@ -48,6 +53,7 @@ struct RawMaterial {
     file: Option<String>,
     random: Option<String>,
     mix: Option<usize>,
+    perturb: Option<Value>,
     weight: Option<f64>,
 }
 
@@ -58,12 +64,12 @@ pub enum NormalsSource {
     Sphere(NormalMap),
     /// [`NormalMap::bumpy`] at the image size, its seed drawn per sample.
     Bumpy,
-    /// A procedural shape ([`crate::shapes::Shape`]), its parameters and a uniformly random
-    /// rotation drawn per sample, drawn with the spec's camera at the image size.
-    Shape(crate::shapes::Shape),
+    /// A procedural shape ([`crate::shapes::Shape`]), its parameters and a rotation
+    /// ([`Views`]) drawn per sample, drawn with the spec's camera at the image size.
+    Shape(crate::shapes::Shape, Views),
     /// Mesh files (one, or a folder's), each with its name as the spec gives it: one
-    /// picked and turned by a uniformly random rotation per sample, drawn as a shape is.
-    Meshes(Vec<(String, crate::shapes::Mesh)>),
+    /// picked and turned by a rotation ([`Views`]) per sample, drawn as a shape is.
+    Meshes(Vec<(String, crate::shapes::Mesh)>, Views),
     /// Normal-map files (one, or a folder's), each with its name as the spec gives it.
     Files(Vec<(String, NormalMap)>),
 }
@@ -77,9 +83,17 @@ pub struct EnvSource {
     /// A procedural light ([`crate::envgen`]) generated per sample at the env size, its
     /// parameters drawn per sample.
     pub procedural: Option<crate::envgen::Kind>,
-    /// Whether each sample turns its map about the vertical axis by a random whole number
-    /// of columns.
-    pub rotate: bool,
+    /// How each sample turns, exposes and white-balances its map.
+    pub augment: EnvAugment,
+}
+
+/// A `materials` item: where a sample's material comes from, and how it is perturbed.
+#[derive(Clone, Debug)]
+pub struct MaterialItem {
+    /// The material.
+    pub source: MaterialSource,
+    /// Perturbations drawn per sample, if any.
+    pub perturb: Option<Perturb>,
 }
 
 /// Where a sample's material comes from.
@@ -132,7 +146,8 @@ pub(super) fn image_dims(v: &Value) -> std::result::Result<(usize, usize), Strin
     Ok((w, h))
 }
 
-fn weight(w: Option<f64>) -> std::result::Result<f64, String> {
+/// An item's weight: 1 unless given; a positive number.
+pub(super) fn weight_of(w: Option<f64>) -> std::result::Result<f64, String> {
     match w {
         None => Ok(1.0),
         Some(w) if w.is_finite() && w > 0.0 => Ok(w),
@@ -199,6 +214,7 @@ pub(super) fn normals(
                 mesh: None,
                 file: Some(s.clone()),
                 folder: None,
+                views: None,
                 weight: None,
             },
             _ => serde_json::from_value(item.clone()).map_err(|e| at(serde_message(&e)))?,
@@ -215,7 +231,11 @@ pub(super) fn normals(
             &["sphere", "bumpy", "file", "folder", "shape", "mesh"],
         )
         .map_err(at)?;
-        let weight = weight(r.weight).map_err(at)?;
+        if r.views.is_some() && kind < 4 {
+            return Err(at("\"views\" goes with \"shape\" or \"mesh\" only".into()));
+        }
+        let views = Views::parse(r.views.as_ref()).map_err(at)?;
+        let weight = weight_of(r.weight).map_err(at)?;
         let size_of = |key: &str, v: &Value| -> Result<()> {
             let (sw, sh) = image_dims(v).map_err(|m| at(format!("{key}: {m}")))?;
             if (sw, sh) != (w, h) {
@@ -243,7 +263,8 @@ pub(super) fn normals(
             }
             4 => {
                 let spec = r.shape.as_deref().unwrap_or_default();
-                NormalsSource::Shape(spec.parse().map_err(|e| at(format!("shape: {e}")))?)
+                let shape = spec.parse().map_err(|e| at(format!("shape: {e}")))?;
+                NormalsSource::Shape(shape, views)
             }
             5 => {
                 let exts = ["obj", "ply", "stl", "off", "gltf", "glb"];
@@ -255,7 +276,7 @@ pub(super) fn normals(
                     hash_file(hasher, &f.label, &f.path).map_err(|e| at(e.to_string()))?;
                     meshes.push((f.label, m));
                 }
-                NormalsSource::Meshes(meshes)
+                NormalsSource::Meshes(meshes, views)
             }
             _ => {
                 let files = files_of(base, r.file, r.folder, &["exr", "npy", "png"]).map_err(at)?;
@@ -296,7 +317,7 @@ fn procedural(
     Ok(EnvSource {
         maps: Vec::new(),
         procedural: Some(kind),
-        rotate: false,
+        augment: EnvAugment::default(),
     })
 }
 
@@ -319,6 +340,8 @@ pub(super) fn envs(
                 file: Some(s.clone()),
                 folder: None,
                 rotate: None,
+                exposure: None,
+                white_balance: None,
                 weight: None,
             },
             _ => serde_json::from_value(item.clone()).map_err(|e| at(serde_message(&e)))?,
@@ -328,12 +351,23 @@ pub(super) fn envs(
             &["file", "folder", "procedural"],
         )
         .map_err(at)?;
-        let weight = weight(r.weight).map_err(at)?;
+        let weight = weight_of(r.weight).map_err(at)?;
+        let augment = EnvAugment {
+            // files turn unless told not to; procedural lights draw their own azimuths
+            turn: r.rotate.unwrap_or(kind != 2),
+            exposure: r.exposure,
+            white_balance: r.white_balance,
+        };
+        augment.validate().map_err(at)?;
+        if augment != EnvAugment::default() && convention != Convention::Equirect {
+            return Err(at(
+                "rotate, exposure and white_balance need the equirect convention (the 'paper' convention's columns span 180 degrees)".into(),
+            ));
+        }
         if kind == 2 {
-            envs.push(Weighted {
-                weight,
-                source: procedural(r.procedural.as_deref(), convention).map_err(at)?,
-            });
+            let mut source = procedural(r.procedural.as_deref(), convention).map_err(at)?;
+            source.augment = augment;
+            envs.push(Weighted { weight, source });
             continue;
         }
         let files = files_of(base, r.file, r.folder, &["exr", "npy"]).map_err(at)?;
@@ -357,7 +391,7 @@ pub(super) fn envs(
             source: EnvSource {
                 maps,
                 procedural: None,
-                rotate: r.rotate.unwrap_or(true),
+                augment,
             },
         });
     }
@@ -370,7 +404,7 @@ pub(super) fn materials(
     base: &Path,
     hasher: &mut Sha256,
     err: &dyn Fn(String) -> Error,
-) -> Result<Vec<Weighted<MaterialSource>>> {
+) -> Result<Vec<Weighted<MaterialItem>>> {
     let mut materials = Vec::new();
     for (i, item) in items.iter().enumerate() {
         let at = |m: String| err(format!("materials[{i}]: {m}"));
@@ -384,7 +418,19 @@ pub(super) fn materials(
         if r.mix.is_some() && kind != 2 {
             return Err(at("\"mix\" goes with \"random\" only".into()));
         }
-        let weight = weight(r.weight).map_err(at)?;
+        let perturb = match &r.perturb {
+            None | Some(Value::Bool(false)) => None,
+            Some(Value::Bool(true)) => Some(Perturb::default()),
+            Some(v) => {
+                let p: Perturb = serde_json::from_value(v.clone())
+                    .map_err(|e| at(format!("perturb: {}", serde_message(&e))))?;
+                Some(p)
+            }
+        };
+        if let Some(p) = &perturb {
+            p.validate().map_err(|m| at(format!("perturb: {m}")))?;
+        }
+        let weight = weight_of(r.weight).map_err(at)?;
         let source = match kind {
             0 => {
                 let name = r.preset.unwrap_or_default();
@@ -423,7 +469,10 @@ pub(super) fn materials(
                 MaterialSource::RandomMerl { mix }
             }
         };
-        materials.push(Weighted { weight, source });
+        materials.push(Weighted {
+            weight,
+            source: MaterialItem { source, perturb },
+        });
     }
     Ok(materials)
 }

@@ -18,8 +18,9 @@ use serde::Deserialize;
 use serde_json::Value;
 use sha2::{Digest, Sha256};
 
+use super::background::{self, Background};
 use super::sources::{
-    self, EnvSource, MaterialSource, NormalsSource, Weighted, image_dims, serde_message,
+    self, EnvSource, MaterialItem, NormalsSource, Weighted, image_dims, serde_message,
 };
 use crate::camera::Camera;
 use crate::envmap::Convention;
@@ -44,6 +45,7 @@ struct RawSpec {
     normals: Vec<Value>,
     envs: Vec<Value>,
     materials: Vec<Value>,
+    backgrounds: Option<Vec<Value>>,
 }
 
 /// A checked and loaded spec.
@@ -70,7 +72,9 @@ pub struct Spec {
     /// Lighting sources.
     pub envs: Vec<Weighted<EnvSource>>,
     /// Material sources.
-    pub materials: Vec<Weighted<MaterialSource>>,
+    pub materials: Vec<Weighted<MaterialItem>>,
+    /// Background sources (black when the spec gives none).
+    pub backgrounds: Vec<Weighted<Background>>,
     /// SHA-256 of the spec's content and of every input file, hex.
     pub digest: String,
 }
@@ -172,6 +176,15 @@ impl Spec {
         let normals = sources::normals(&raw.normals, image_size, &base, &mut hasher, &err)?;
         let envs = sources::envs(&raw.envs, env_size, convention, &base, &mut hasher, &err)?;
         let materials = sources::materials(&raw.materials, &base, &mut hasher, &err)?;
+        let backgrounds = background::backgrounds(
+            raw.backgrounds.as_deref(),
+            image_size,
+            camera,
+            convention,
+            &base,
+            &mut hasher,
+            &err,
+        )?;
 
         Ok(Spec {
             path: path.to_path_buf(),
@@ -185,6 +198,7 @@ impl Spec {
             normals,
             envs,
             materials,
+            backgrounds,
             digest: hex(&hasher.finalize()),
         })
     }

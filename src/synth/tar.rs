@@ -1,7 +1,7 @@
 //! Chunks as WebDataset-style tar files with reproducible bytes: ustar headers with mtime
 //! 0, uid and gid 0, no user or group names, mode 0644, members sorted by name. Each
-//! sample `k` is five members sharing the key `k` (zero-padded): `.env.npy`,
-//! `.image.npy`, `.material.json`, `.normals.npy` and `.params.json`.
+//! sample `k` is six members sharing the key `k` (zero-padded): `.env.npy`, `.image.npy`,
+//! `.mask.npy`, `.material.json`, `.normals.npy` and `.params.json`.
 
 use crate::error::{Error, Result};
 use crate::scene::Image;
@@ -9,9 +9,10 @@ use crate::scene::Image;
 use super::draw::Sample;
 
 /// The members of a sample, by suffix, in the order they are written.
-pub const MEMBERS: [&str; 5] = [
+pub const MEMBERS: [&str; 6] = [
     "env.npy",
     "image.npy",
+    "mask.npy",
     "material.json",
     "normals.npy",
     "params.json",
@@ -48,13 +49,24 @@ pub fn members(sample: &Sample, image: &Image, renderer: &str) -> Members {
         ),
         (
             MEMBERS[2],
-            crate::io::json::encode_material(&s.material, None),
+            crate::io::npy::encode_f32(
+                &[s.normals.height, s.normals.width],
+                &sample
+                    .mask
+                    .iter()
+                    .map(|&m| if m { 1.0 } else { 0.0 })
+                    .collect::<Vec<f32>>(),
+            ),
         ),
         (
             MEMBERS[3],
+            crate::io::json::encode_material(&s.material, None),
+        ),
+        (
+            MEMBERS[4],
             crate::io::npy::encode_rgb(s.normals.width, s.normals.height, &s.normals.normals),
         ),
-        (MEMBERS[4], params_bytes),
+        (MEMBERS[5], params_bytes),
     ]
 }
 

@@ -272,3 +272,30 @@ impl Truth {
         }
     }
 }
+
+/// An H x W x 3 float `.npy` file's bytes as (H, W, pixels).
+pub fn npy_rgb(bytes: &[u8]) -> (usize, usize, Vec<[f32; 3]>) {
+    let a = matedit::io::npy::parse(bytes).expect("an .npy file");
+    let px = a
+        .data
+        .chunks_exact(3)
+        .map(|c| [c[0] as f32, c[1] as f32, c[2] as f32])
+        .collect();
+    (a.shape[0], a.shape[1], px)
+}
+
+/// `matedit synth SPEC -o OUT --device cpu EXTRA...`.
+pub fn synth_cmd(
+    spec: &std::path::Path,
+    out: &std::path::Path,
+    extra: &[&str],
+) -> assert_cmd::Command {
+    let mut cmd = assert_cmd::cargo::cargo_bin_cmd!("matedit");
+    cmd.arg("synth")
+        .arg(spec)
+        .arg("-o")
+        .arg(out)
+        .args(["--device", "cpu"]);
+    cmd.args(extra);
+    cmd
+}

@@ -1,0 +1,41 @@
+//! JPEG photos: baseline and progressive, grey, RGB and CMYK/YCCK decoded to 8-bit RGB
+//! (zune-jpeg), then sRGB-decoded to linear by the callers.
+
+use std::path::Path;
+
+use zune_core::bytestream::ZCursor;
+use zune_core::colorspace::ColorSpace;
+use zune_core::options::DecoderOptions;
+use zune_jpeg::JpegDecoder;
+
+use crate::error::{Error, Result};
+use crate::io::source::MAX_IMAGE_SIDE;
+
+/// A decoded JPEG: width, height and 8-bit RGB samples, row-major, row 0 at the top.
+pub type Rgb8 = (usize, usize, Vec<u8>);
+
+/// Decodes a JPEG file's bytes to 8-bit RGB; `path` names the file in errors.
+pub fn decode_bytes(path: &Path, bytes: &[u8]) -> Result<Rgb8> {
+    let options = DecoderOptions::default()
+        .jpeg_set_out_colorspace(ColorSpace::RGB)
+        .set_max_width(MAX_IMAGE_SIDE)
+        .set_max_height(MAX_IMAGE_SIDE);
+    let mut decoder = JpegDecoder::new_with_options(ZCursor::new(bytes), options);
+    let pixels = decoder
+        .decode()
+        .map_err(|e| Error::file(path, format!("not a readable JPEG: {e}")))?;
+    let info = decoder
+        .info()
+        .ok_or_else(|| Error::file(path, "not a readable JPEG: no header"))?;
+    let (w, h) = (usize::from(info.width), usize::from(info.height));
+    if w == 0 || h == 0 || pixels.len() != w * h * 3 {
+        return Err(Error::file(
+            path,
+            format!(
+                "not a readable JPEG: {} samples for {w} x {h} RGB pixels",
+                pixels.len()
+            ),
+        ));
+    }
+    Ok((w, h, pixels))
+}

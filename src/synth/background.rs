@@ -1,0 +1,418 @@
+//! What a sample shows behind its object, as a photo would: black, the sample's own
+//! environment map seen through the camera, or a photo from a folder. The object is opaque:
+//! a sample's image is the layer's render where its mask is set and the background
+//! elsewhere.
+//!
+//! - `env`: each background pixel shows the map along its camera ray (a perspective
+//!   camera's ray through the pixel; an orthographic camera, whose rays are all -z, shows
+//!   the map as a [`ORTHO_FOV`]-degree perspective view down -z would), bilinear in the
+//!   map, then blurred by a Gaussian of `blur` degrees (default 0 for a perspective camera,
+//!   [`ORTHO_BLUR`] for an orthographic one: a far background out of focus).
+//! - photos (`file`, `folder`: PNG, JPEG, EXR or NPY; 8-bit files are sRGB-decoded to
+//!   linear): a random crop of the photo's aspect-corrected frame (60-100% of the largest
+//!   crop of the image's aspect ratio, anywhere in the photo, mirrored half the time),
+//!   resampled bilinearly to the image size, scaled so that its mean luminance is the
+//!   environment map's mean radiance times 2^e with e uniform in `exposure` (stops,
+//!   default [-1, 1]): a background as bright as the light that falls on the object.
+
+use std::path::Path;
+
+use serde::Deserialize;
+use serde_json::{Value, json};
+use sha2::Sha256;
+
+use super::files::{files_of, hash_file};
+use super::sources::{serde_message, weight_of};
+use crate::camera::Camera;
+use crate::envmap::{Convention, EnvMap};
+use crate::error::{Error, Result};
+use crate::splitmix::SplitMix;
+
+/// The vertical field of view through which an orthographic camera sees an `env`
+/// background, degrees.
+pub const ORTHO_FOV: f64 = 30.0;
+/// The default blur of an `env` background behind an orthographic camera, degrees.
+pub const ORTHO_BLUR: f64 = 1.5;
+/// The smallest crop of a photo, as a share of the largest of the image's aspect ratio.
+const MIN_CROP: f64 = 0.6;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawBackground {
+    black: Option<bool>,
+    env: Option<bool>,
+    file: Option<String>,
+    folder: Option<String>,
+    blur: Option<f64>,
+    exposure: Option<[f64; 2]>,
+    weight: Option<f64>,
+}
+
+/// A photo kept for backgrounds: linear RGB, box-filtered down to at most twice the image
+/// size.
+#[derive(Clone, Debug)]
+pub struct Photo {
+    width: usize,
+    height: usize,
+    pixels: Vec<[f32; 3]>,
+}
+
+/// Where a sample's background comes from.
+#[derive(Clone, Debug)]
+pub enum Background {
+    /// Black (the render as it is).
+    Black,
+    /// The sample's map seen through the camera, blurred by a Gaussian of this many
+    /// degrees.
+    Env {
+        /// Gaussian sigma, degrees.
+        blur: f64,
+    },
+    /// Photos, each with its name as the spec gives it.
+    Photos {
+        /// The photos.
+        photos: Vec<(String, Photo)>,
+        /// Exposure range, stops about the map's mean radiance.
+        exposure: [f64; 2],
+    },
+}
+
+/// The spec's `backgrounds` list (absent: black), loaded and hashed; errors name the item.
+pub(super) fn backgrounds(
+    items: Option<&[Value]>,
+    (w, h): (usize, usize),
+    camera: Camera,
+    convention: Convention,
+    base: &Path,
+    hasher: &mut Sha256,
+    err: &dyn Fn(String) -> Error,
+) -> Result<Vec<super::sources::Weighted<Background>>> {
+    let Some(items) = items else {
+        return Ok(vec![super::sources::Weighted {
+            weight: 1.0,
+            source: Background::Black,
+        }]);
+    };
+    if items.is_empty() {
+        return Err(err(
+            "backgrounds: the list is empty; leave it out for black".into(),
+        ));
+    }
+    let mut out = Vec::new();
+    for (i, item) in items.iter().enumerate() {
+        let at = |m: String| err(format!("backgrounds[{i}]: {m}"));
+        let r: RawBackground = match item {
+            Value::String(s) if s == "black" || s == "env" => {
+                serde_json::from_value(json!({ s.as_str(): true }))
+                    .map_err(|e| at(e.to_string()))?
+            }
+            Value::String(s) => {
+                return Err(at(format!(
+                    "'{s}': give \"black\", \"env\", {{\"file\": PATH}} or {{\"folder\": PATH}}"
+                )));
+            }
+            _ => serde_json::from_value(item.clone()).map_err(|e| at(serde_message(&e)))?,
+        };
+        let given = [
+            r.black == Some(true),
+            r.env == Some(true),
+            r.file.is_some(),
+            r.folder.is_some(),
+        ];
+        if given.iter().filter(|g| **g).count() != 1 {
+            return Err(at(
+                "give exactly one of \"black\": true, \"env\": true, \"file\", \"folder\"".into(),
+            ));
+        }
+        if r.blur.is_some() && !given[1] {
+            return Err(at("\"blur\" goes with \"env\" only".into()));
+        }
+        if r.exposure.is_some() && !(given[2] || given[3]) {
+            return Err(at(
+                "\"exposure\" goes with \"file\" or \"folder\" only".into()
+            ));
+        }
+        let weight = weight_of(r.weight).map_err(at)?;
+        let source = if given[0] {
+            Background::Black
+        } else if given[1] {
+            if convention != Convention::Equirect {
+                return Err(at(
+                    "env: a map seen through the camera needs the equirect convention".into(),
+                ));
+            }
+            let default = if camera.is_orthographic() {
+                ORTHO_BLUR
+            } else {
+                0.0
+            };
+            let blur = r.blur.unwrap_or(default);
+            if !(blur.is_finite() && (0.0..=30.0).contains(&blur)) {
+                return Err(at(format!("blur: {blur} degrees must be in [0, 30]")));
+            }
+            Background::Env { blur }
+        } else {
+            let exposure = r.exposure.unwrap_or([-1.0, 1.0]);
+            if !(exposure.iter().all(|e| e.is_finite() && e.abs() <= 20.0)
+                && exposure[0] <= exposure[1])
+            {
+                return Err(at(format!(
+                    "exposure: {exposure:?} must be a range of stops within [-20, 20] with lo <= hi"
+                )));
+            }
+            let exts = ["png", "jpg", "jpeg", "exr", "npy"];
+            let files = files_of(base, r.file, r.folder, &exts).map_err(at)?;
+            let mut photos = Vec::with_capacity(files.len());
+            for f in files {
+                let bytes = crate::io::read_bytes(&f.path).map_err(|e| at(e.to_string()))?;
+                let image =
+                    crate::io::image_from_bytes(&f.path, &bytes).map_err(|e| at(e.to_string()))?;
+                hash_file(hasher, &f.label, &f.path).map_err(|e| at(e.to_string()))?;
+                photos.push((f.label, Photo::reduced(image, w.max(h) * 2)));
+            }
+            Background::Photos { photos, exposure }
+        };
+        out.push(super::sources::Weighted { weight, source });
+    }
+    Ok(out)
+}
+
+impl Photo {
+    /// `image` box-filtered by the largest whole factor that keeps its shorter side at
+    /// least `side` (or as it is, if smaller).
+    fn reduced(image: crate::scene::Image, side: usize) -> Photo {
+        let f = (image.width.min(image.height) / side.max(1)).max(1);
+        let (w, h) = (image.width / f, image.height / f);
+        let mut pixels = Vec::with_capacity(w * h);
+        let norm = 1.0 / (f * f) as f32;
+        for y in 0..h {
+            for x in 0..w {
+                let mut s = [0.0f32; 3];
+                for dy in 0..f {
+                    let row = &image.pixels[(y * f + dy) * image.width + x * f..][..f];
+                    for p in row {
+                        for k in 0..3 {
+                            s[k] += p[k];
+                        }
+                    }
+                }
+                pixels.push(s.map(|v| v * norm));
+            }
+        }
+        Photo {
+            width: w,
+            height: h,
+            pixels,
+        }
+    }
+
+    /// Bilinear sample at continuous pixel coordinates (pixel centres at +0.5), clamped.
+    fn sample(&self, x: f64, y: f64) -> [f32; 3] {
+        bilinear(
+            &self.pixels,
+            self.width,
+            self.height,
+            x - 0.5,
+            y - 0.5,
+            false,
+        )
+    }
+}
+
+/// Bilinear interpolation of a row-major raster at (x, y) in texel-centre coordinates;
+/// rows clamp, columns clamp or wrap (`wrap`).
+fn bilinear(px: &[[f32; 3]], w: usize, h: usize, x: f64, y: f64, wrap: bool) -> [f32; 3] {
+    let y = y.clamp(0.0, (h - 1) as f64);
+    let (y0, fy) = (y.floor() as usize, y - y.floor());
+    let y1 = (y0 + 1).min(h - 1);
+    let (x0, x1, fx) = if wrap {
+        let x = x.rem_euclid(w as f64);
+        let x0 = (x.floor() as usize).min(w - 1);
+        (x0, (x0 + 1) % w, x - x.floor())
+    } else {
+        let x = x.clamp(0.0, (w - 1) as f64);
+        let x0 = x.floor() as usize;
+        (x0, (x0 + 1).min(w - 1), x - x.floor())
+    };
+    let at = |r: usize, c: usize| px[r * w + c].map(f64::from);
+    let (a, b, c, d) = (at(y0, x0), at(y0, x1), at(y1, x0), at(y1, x1));
+    [0, 1, 2].map(|k| {
+        let top = a[k] + (b[k] - a[k]) * fx;
+        let bottom = c[k] + (d[k] - c[k]) * fx;
+        (top + (bottom - top) * fy) as f32
+    })
+}
+
+/// The radiance of an equirect map along direction `d` (unit), bilinear.
+pub fn env_along(env: &EnvMap, d: [f64; 3]) -> [f32; 3] {
+    let theta = d[1].clamp(-1.0, 1.0).acos();
+    let phi = d[2].atan2(d[0]).rem_euclid(std::f64::consts::TAU);
+    let x = phi / std::f64::consts::TAU * env.width as f64 - 0.5;
+    let y = theta / std::f64::consts::PI * env.height as f64 - 0.5;
+    bilinear(&env.texels, env.width, env.height, x, y, true)
+}
+
+/// The map's mean luminance over the sphere (solid-angle weighted).
+fn mean_luminance(env: &EnvMap) -> f64 {
+    let (mut sum, mut total) = (0.0, 0.0);
+    for r in 0..env.height {
+        for c in 0..env.width {
+            let (_, d_omega) = env.convention.texel(r, c, env.height, env.width);
+            let t = env.texels[r * env.width + c];
+            sum += d_omega * (0.2126 * t[0] as f64 + 0.7152 * t[1] as f64 + 0.0722 * t[2] as f64);
+            total += d_omega;
+        }
+    }
+    sum / total.max(1e-300)
+}
+
+/// Separable Gaussian blur of sigma `s` pixels, edges clamped.
+fn blur(px: &mut [[f32; 3]], w: usize, h: usize, s: f64) {
+    if s <= 0.0 {
+        return;
+    }
+    let r = (3.0 * s).ceil() as isize;
+    let k: Vec<f64> = (-r..=r)
+        .map(|i| (-(i * i) as f64 / (2.0 * s * s)).exp())
+        .collect();
+    let norm: f64 = k.iter().sum();
+    let pass = |px: &[[f32; 3]], along_x: bool| -> Vec<[f32; 3]> {
+        let mut out = vec![[0.0f32; 3]; px.len()];
+        for y in 0..h as isize {
+            for x in 0..w as isize {
+                let mut acc = [0.0f64; 3];
+                for (i, kv) in (-r..=r).zip(&k) {
+                    let (xx, yy) = if along_x {
+                        ((x + i).clamp(0, w as isize - 1), y)
+                    } else {
+                        (x, (y + i).clamp(0, h as isize - 1))
+                    };
+                    let p = px[yy as usize * w + xx as usize];
+                    for c in 0..3 {
+                        acc[c] += kv * p[c] as f64;
+                    }
+                }
+                out[y as usize * w + x as usize] = acc.map(|v| (v / norm) as f32);
+            }
+        }
+        out
+    };
+    let tmp = pass(px, true);
+    px.copy_from_slice(&pass(&tmp, false));
+}
+
+impl Background {
+    /// The background of a `w` x `h` image lit by `env` under `camera`, drawn from `rng`,
+    /// with what the sample records of it; `None` for black.
+    pub fn draw(
+        &self,
+        env: &EnvMap,
+        camera: Camera,
+        (w, h): (usize, usize),
+        rng: &mut SplitMix,
+    ) -> (Option<Vec<[f32; 3]>>, Value) {
+        match self {
+            Background::Black => (None, json!("black")),
+            Background::Env { blur: deg } => {
+                let (cam, fov) = match camera {
+                    Camera::Orthographic => (
+                        Camera::Perspective {
+                            fov_y_deg: ORTHO_FOV,
+                        },
+                        ORTHO_FOV,
+                    ),
+                    Camera::Perspective { fov_y_deg } => (camera, fov_y_deg),
+                };
+                let mut px = Vec::with_capacity(w * h);
+                for y in 0..h {
+                    for x in 0..w {
+                        let v = cam.view_dir(x, y, w, h);
+                        px.push(env_along(env, [-v[0], -v[1], -v[2]]));
+                    }
+                }
+                blur(&mut px, w, h, deg / fov * h as f64);
+                (Some(px), json!({ "env": true, "blur": deg }))
+            }
+            Background::Photos { photos, exposure } => {
+                let (label, photo) = &photos[rng.below(photos.len())];
+                // the largest crop of the image's aspect ratio, then a share of it
+                let aspect = w as f64 / h as f64;
+                let (pw, ph) = (photo.width as f64, photo.height as f64);
+                let (cw_max, ch_max) = if pw / ph > aspect {
+                    (ph * aspect, ph)
+                } else {
+                    (pw, pw / aspect)
+                };
+                let share = MIN_CROP + (1.0 - MIN_CROP) * rng.uniform();
+                let (cw, ch) = (cw_max * share, ch_max * share);
+                let (x0, y0) = ((pw - cw) * rng.uniform(), (ph - ch) * rng.uniform());
+                let mirror = rng.uniform() < 0.5;
+                let stops = exposure[0] + (exposure[1] - exposure[0]) * rng.uniform();
+                let mut px = Vec::with_capacity(w * h);
+                for y in 0..h {
+                    for x in 0..w {
+                        let u = (x as f64 + 0.5) / w as f64;
+                        let u = if mirror { 1.0 - u } else { u };
+                        let v = (y as f64 + 0.5) / h as f64;
+                        px.push(photo.sample(x0 + u * cw, y0 + v * ch));
+                    }
+                }
+                let mean: f64 = px
+                    .iter()
+                    .map(|p| 0.2126 * p[0] as f64 + 0.7152 * p[1] as f64 + 0.0722 * p[2] as f64)
+                    .sum::<f64>()
+                    / px.len() as f64;
+                let scale = if mean > 0.0 {
+                    mean_luminance(env) * stops.exp2() / mean
+                } else {
+                    0.0
+                };
+                for p in &mut px {
+                    *p = p.map(|v| (v as f64 * scale) as f32);
+                }
+                let record = json!({
+                    "photo": label,
+                    "crop": [x0, y0, cw, ch],
+                    "mirror": mirror,
+                    "exposure": stops,
+                    "scale": scale,
+                });
+                (Some(px), record)
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn env_lookup_finds_each_texel_centre() {
+        let (h, w) = (4, 8);
+        let texels: Vec<[f32; 3]> = (0..h * w).map(|i| [i as f32; 3]).collect();
+        let env = EnvMap::new(h, w, Convention::Equirect, texels).unwrap();
+        for r in 0..h {
+            for c in 0..w {
+                let (d, _) = Convention::Equirect.texel(r, c, h, w);
+                let v = env_along(&env, d);
+                assert!(
+                    (v[0] - (r * w + c) as f32).abs() < 1e-3,
+                    "({r}, {c}): {v:?}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn blur_keeps_a_constant_and_spreads_a_spike() {
+        let mut px = vec![[2.0f32; 3]; 9 * 7];
+        blur(&mut px, 9, 7, 1.5);
+        assert!(px.iter().all(|p| (p[0] - 2.0).abs() < 1e-5));
+        let mut px = vec![[0.0f32; 3]; 9 * 9];
+        px[40] = [1.0; 3];
+        blur(&mut px, 9, 9, 1.0);
+        let total: f32 = px.iter().map(|p| p[0]).sum();
+        assert!((total - 1.0).abs() < 1e-4 && px[40][0] < 0.2 && px[41][0] > 0.05);
+    }
+}
