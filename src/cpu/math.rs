@@ -330,6 +330,11 @@ pub enum MathFn {
     Ln,
     /// [`ln_1m`]: ln(1 - d) of the argument d, with x = 1 - d rounded to f32.
     Ln1m,
+    /// [`exp2m1_reduced`] of the argument (the dense kernels' lobes).
+    Exp2m1Reduced,
+    /// u Q(u), the polynomial of [`exp2m1_reduced`] without its range reduction: what
+    /// the dense forward kernel takes for lobes with |u| < 1/2.
+    Exp2m1Poly,
 }
 
 struct Eval<'a> {
@@ -351,6 +356,8 @@ impl pulp::WithSimd for Eval<'_> {
                 MathFn::Exp2m1 => exp2m1(s, *x),
                 MathFn::Ln => ln(s, *x),
                 MathFn::Ln1m => ln_1m(s, s.sub_f32s(s.splat_f32s(1.0), *x), *x),
+                MathFn::Exp2m1Reduced => exp2m1_reduced(s, *x),
+                MathFn::Exp2m1Poly => s.mul_f32s(*x, horner(s, *x, &EXP2M1_Q)),
             };
         }
     }
