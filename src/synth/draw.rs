@@ -10,6 +10,7 @@ use crate::camera::Camera;
 use crate::error::{Error, Result};
 use crate::material::{Material, N_PARAMS};
 use crate::scene::{NormalMap, Scene};
+use crate::spline::N_CTRL_POINTS;
 use crate::splitmix::SplitMix;
 
 /// A sample's inputs and the parameters that made it.
@@ -245,6 +246,18 @@ fn random_merl(rng: &mut SplitMix, mix: usize) -> Result<(Material, Value)> {
         }
         parts.push(json!({ "preset": merl[i].name, "weight": wt }));
     }
+    // a convex combination stays within the presets' ranges, up to rounding (an exponent
+    // of 1e4 mixed came to 10000.000000000002): clamp to the valid ranges
+    for (i, c) in ctrl.iter_mut().enumerate() {
+        *c = if (i / N_CTRL_POINTS) % 2 == 1 {
+            c.clamp(0.0, crate::material::MAX_EXPONENT)
+        } else {
+            c.clamp(
+                -crate::material::MAX_ABS_SCALE,
+                crate::material::MAX_ABS_SCALE,
+            )
+        };
+    }
     let material = Material::new("merl-mix", &ctrl)
         .map_err(|e| Error::Invalid(format!("random merl material: {e}")))?;
     Ok((material, json!({ "random": "merl", "mix": parts })))
@@ -274,14 +287,23 @@ mod tests {
 
     #[test]
     fn merl_mixes_are_valid() {
+        // many draws: mixing presets whose exponents reach 1e4 once rounded past it
         let mut rng = SplitMix(3);
-        for mix in [1, 2, 3, 8] {
+        for draw in 0..3000 {
+            let mix = [1, 2, 3, 8, 16][draw % 5];
             let (m, p) = random_merl(&mut rng, mix).unwrap();
             m.validate().unwrap();
             let parts = p["mix"].as_array().unwrap();
             assert_eq!(parts.len(), mix);
             let sum: f64 = parts.iter().map(|x| x["weight"].as_f64().unwrap()).sum();
             assert!((sum - 1.0).abs() < 1e-12);
+        }
+        // two generator states whose mixes of three rounded an exponent of 1e4 past 1e4
+        for (seed, k) in [(1, 151), (3, 38)] {
+            let mut rng = SplitMix::for_sample(seed, k);
+            let _ = (rng.uniform(), rng.next_u64(), rng.next_u64());
+            let _ = (rng.uniform(), rng.next_u64());
+            random_merl(&mut rng, 3).unwrap().0.validate().unwrap();
         }
     }
 }
