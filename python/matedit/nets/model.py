@@ -269,9 +269,11 @@ class Nets(nn.Module):
             raise ValueError(f"image: size {img.shape[1]}x{img.shape[2]} is not a multiple of {k}")
         if mask is not None:
             m = torch.as_tensor(np.asarray(mask)).bool().to(img.device)
+            given = tuple(m.shape)
             m = m[None] if m.dim() == 2 else m
             if m.shape != img.shape[:3]:
-                raise ValueError(f"mask: shape {tuple(m.shape)}, expected {tuple(img.shape[:3])}")
+                want = tuple(img.shape[:3]) if len(given) != 2 else tuple(img.shape[1:3])
+                raise ValueError(f"mask: shape {given}, expected {want}")
         else:
             m = self.normals(prepare(img))[1] > 0
         x = prepare(img, m)

@@ -255,11 +255,23 @@ def train(cfg: dict, out, resume: bool = False, stop_at: int | None = None, quie
             "step": step,
             "wall_seconds": round(seconds, 3),
             "world_size": world,
+            "ranks_agree": agree,
             "machine": {"node": platform.node(), "cpu": platform.processor() or platform.machine(),
                         "cpus": os.cpu_count(), "python": platform.python_version(), "torch": torch.__version__},
         }
         (out / "run.json").write_text(json.dumps(run, indent=1))
 
+    def ranks_agree() -> bool:
+        """Whether every rank holds the same weights (DDP keeps them so; checked, not hoped)."""
+        if world == 1:
+            return True
+        sums = torch.stack([p.detach().double().sum() for p in nets.parameters()])
+        lo, hi = sums.clone(), sums.clone()
+        dist.all_reduce(lo, dist.ReduceOp.MIN)
+        dist.all_reduce(hi, dist.ReduceOp.MAX)
+        return torch.equal(lo, hi)
+
+    agree = True
     last_ckpt = time.time()
     t_log, tick = time.time(), time.time()
     batches = iter(loader)
@@ -295,6 +307,7 @@ def train(cfg: dict, out, resume: bool = False, stop_at: int | None = None, quie
         if step % cfg["checkpoint_every"] == 0 or now - last_ckpt > cfg["checkpoint_seconds"]:
             checkpoint()
             last_ckpt = time.time()
+    agree = ranks_agree()
     checkpoint()
     return {"step": step, "history": history, "seconds": seconds}
 
