@@ -9,6 +9,7 @@ import json
 import math
 import os
 import pathlib
+import socket
 import subprocess
 import sys
 
@@ -58,6 +59,9 @@ def write_config(root: pathlib.Path, name: str, **changes) -> pathlib.Path:
         "log_every": 1000,
         "checkpoint_every": 1000,
         "seed": 5,
+        # torch at 1 thread: no idle OpenMP threads spinning on the cores the layer needs,
+        # whether or not torch was imported before matedit.nets (docs/nets.md, "Threads")
+        "threads": 1,
     }
     settings.update(changes)
     path = root / f"{name}.py"
@@ -116,7 +120,10 @@ def test_ddp_two_processes(dataset):
     path = write_config(dataset, "ddp", steps=4)
     out = dataset / "runs" / "ddp"
     env = {**os.environ, "PYTHONPATH": str(pathlib.Path(matedit.__file__).parent.parent), "OMP_NUM_THREADS": "1"}
-    cmd = [sys.executable, "-m", "torch.distributed.run", "--nproc_per_node", "2", "--master_port", "29517",
+    with socket.socket() as s:  # a free port for the rendezvous
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    cmd = [sys.executable, "-m", "torch.distributed.run", "--nproc_per_node", "2", "--master_port", str(port),
            "-m", "matedit.nets.train", str(path), "--out", str(out)]
     r = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr[-2000:]

@@ -210,10 +210,15 @@ class MaterialNet(nn.Module):
         super().__init__()
         self.net = GlobalNet(cfg, N_MERL)
         self.register_buffer("presets", merl_presets())
+        # idx(k, s, t, j) = ((k * 3 + s) * 2 + t) * 6 + j: t = 1 are the exponents
+        self.register_buffer("is_exponent", torch.arange(108) // 6 % 2 == 1, persistent=False)
 
     def forward(self, x: torch.Tensor, mask: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         w = torch.softmax(self.net(x, mask), -1)
-        return w @ self.presets, w
+        ctrl = w @ self.presets
+        # weights summing to 1 + 1e-7 in float32 would put a mix of 1e4 exponents just over
+        # the layer's bound of 1e4
+        return torch.where(self.is_exponent, ctrl.clamp(0, 1e4), ctrl), w
 
 
 class LightNet(nn.Module):

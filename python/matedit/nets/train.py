@@ -66,7 +66,7 @@ DEFAULTS = {
     "w_render": 1.0,  # I' against I
     "w_edit": 1.0,  # O' against O
     "seed": 0,
-    "threads": 2,  # torch.set_num_threads
+    "threads": 2,  # torch.set_num_threads, and the layer's RAYON_NUM_THREADS unless set
     "workers": 0,  # DataLoader workers
     "shuffle_buffer": 64,
     "render_device": "cpu",  # the rendering layer's device ("cpu" is bit-reproducible)
@@ -207,6 +207,8 @@ def train(cfg: dict, out, resume: bool = False, stop_at: int | None = None, quie
     if world > 1 and not dist.is_initialized():
         dist.init_process_group("gloo")
     torch.set_num_threads(cfg["threads"])
+    # the rendering layer's CPU threads (a rayon pool, made on its first use in the process)
+    os.environ.setdefault("RAYON_NUM_THREADS", str(cfg["threads"]))
     torch.use_deterministic_algorithms(True)
     torch.manual_seed(cfg["seed"])
     np.random.seed(cfg["seed"])
