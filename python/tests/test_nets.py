@@ -5,6 +5,7 @@ the data stream splits and resumes exactly, bad inputs raise ValueError naming t
 problem, the balloon baseline inflates a disc into a sphere, and evaluation reports
 finite metrics beside its baselines."""
 
+import io
 import json
 import math
 import os
@@ -12,6 +13,7 @@ import pathlib
 import socket
 import subprocess
 import sys
+import tarfile
 
 import numpy as np
 import pytest
@@ -89,6 +91,8 @@ def test_loss_falls_and_run_files(dataset):
     js = out / "eval.json"
     assert evaluate.main([str(out / "weights.safetensors"), str(dataset / "test"), "--json", str(js)]) == 0
     metrics = json.loads(js.read_text())
+    # the training folder is refused: metrics come from a held-out split
+    assert evaluate.main([str(out / "weights.safetensors"), str(dataset / "train"), "--json", str(js)]) == 2
     assert metrics["samples"] == 32
     for who in ("nets", "baselines"):
         assert all(math.isfinite(v) for v in metrics[who].values()), metrics[who]
@@ -224,3 +228,23 @@ def test_balloon_inflates_a_disc_into_a_sphere():
     assert err[r < 0.8 * radius].max() < 2 and err[disc].mean() < 3
     assert (n[~disc] == 0).all() and np.allclose(np.linalg.norm(n[disc], axis=-1), 1, atol=1e-5)
     assert n[32, 10, 0] < -0.8 and n[10, 32, 1] > 0.8  # the rim faces sideways, the top up
+
+
+def test_a_mask_member_is_used(dataset, tmp_path):
+    """A sample's mask.npy, where present, is its mask (not the normals' support)."""
+    src = dataset / "train" / "chunk-000000.tar"
+    mask = np.zeros((16, 16), np.uint8)
+    mask[2:9, 3:7] = 1
+    buf = io.BytesIO()
+    np.save(buf, mask)
+    with tarfile.open(src) as t, tarfile.open(tmp_path / "chunk.tar", "w") as out:
+        for info in t.getmembers():
+            out.addfile(info, t.extractfile(info))
+            if info.name.endswith(".env.npy"):
+                extra = tarfile.TarInfo(info.name.replace("env.npy", "mask.npy"))
+                extra.size = len(buf.getvalue())
+                out.addfile(extra, io.BytesIO(buf.getvalue()))
+    got = list(data.read_chunk(tmp_path / "chunk.tar"))
+    assert len(got) == 8 and all(torch.equal(s["mask"], torch.from_numpy(mask != 0)) for _, s in got)
+    plain = [s for _, s in data.read_chunk(src)]
+    assert torch.equal(plain[0]["mask"], plain[0]["normals"].abs().sum(-1) > 0)

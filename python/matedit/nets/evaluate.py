@@ -2,7 +2,8 @@
 
     python -m matedit.nets.evaluate WEIGHTS DATA [--json OUT] [--batch-size B] [--limit N]
 
-DATA must be a split no training choice saw (synthesise it with another seed). Every
+DATA must be a split no training choice saw (synthesise it with another seed; the folder
+the weights were trained on, by its spec digest, is refused). Every
 metric is over the object's pixels (the true mask), averaged over samples:
 - normals: mean and median angle (degrees) to the true normals, % of pixels under 11.25,
   22.5 and 30 degrees; baseline: `balloon` normals inflated from the true mask;
@@ -22,6 +23,7 @@ It prints a table and writes the numbers as JSON.
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import math
 import sys
@@ -31,6 +33,7 @@ import torch
 
 import matedit.torch
 from matedit.nets.data import collate, samples
+from matedit.nets.train import spec_digest
 from matedit.nets.model import Nets, load, merl_presets, normalise, prepare, probe_scene, spheres
 
 # ---------------------------------------------------------------------------------------
@@ -123,24 +126,12 @@ def evaluate(nets: Nets, folder, batch_size: int = 8, limit: int | None = None, 
     m_mean, l_mean = mean_material(), mean_light(nets)
     acc = {k: [] for k in ("nets", "baselines")}
     angles = {k: [] for k in acc}
+    stream = itertools.islice(samples(folder), limit)
     count = 0
-    batch = []
-    stream = samples(folder)
-    while True:
-        s = next(stream, None)
-        if s is not None and (limit is None or count < limit):
-            batch.append(s)
-            count += 1
-            if len(batch) < batch_size:
-                continue
-        if not batch:
-            break
-        b = collate(batch)
-        batch = []
+    while batch := list(itertools.islice(stream, batch_size)):
+        count += len(batch)
         with torch.no_grad():
-            _eval_batch(nets, b, probe, m_mean, l_mean, device, acc, angles)
-        if s is None or (limit is not None and count >= limit):
-            break
+            _eval_batch(nets, collate(batch), probe, m_mean, l_mean, device, acc, angles)
     if count == 0:
         raise ValueError(f"{folder}: no samples")
     res = {"samples": count}
@@ -194,6 +185,17 @@ def _eval_batch(nets, b, probe, m_mean, l_mean, device, acc, angles) -> None:
             )
 
 
+def weights_data_spec(path) -> str | None:
+    """The spec digest of the training data recorded in a weights file, if any."""
+    from safetensors import safe_open
+
+    try:
+        with safe_open(str(path), framework="pt") as f:
+            return json.loads((f.metadata() or {}).get("data_spec", "null"))
+    except Exception:
+        return None  # load() reports what is wrong with the file
+
+
 def report(res: dict) -> str:
     lines = [f"{res['samples']} samples", f"{'metric':28} {'nets':>10} {'baseline':>10}"]
     for name in res["nets"]:
@@ -212,6 +214,9 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     torch.set_num_threads(args.threads)
     try:
+        trained_on = weights_data_spec(args.weights)
+        if trained_on is not None and trained_on == spec_digest(args.data):
+            raise ValueError(f"{args.data}: the data these weights were trained on; evaluate on a held-out split")
         res = evaluate(load(args.weights), args.data, args.batch_size, args.limit)
     except ValueError as e:
         print(f"error: {e}", file=sys.stderr)
