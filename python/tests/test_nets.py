@@ -130,7 +130,7 @@ def test_ddp_two_processes(dataset):
     cmd = [sys.executable, "-m", "torch.distributed.run", "--nproc_per_node", "2", "--master_port", str(port),
            "-m", "matedit.nets.train", str(path), "--out", str(out)]
     r = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=120)
-    assert r.returncode == 0, r.stderr[-2000:]
+    assert r.returncode == 0, (r.stdout + r.stderr)[-4000:]
     run = json.loads((out / "run.json").read_text())
     assert run["world_size"] == 2 and run["step"] == 4 and run["ranks_agree"]
     nets = load(out / "weights.safetensors")
@@ -186,6 +186,9 @@ def test_bad_inputs_raise_value_error(dataset, tmp_path):
         train.load_config(write_config(tmp_path, "neg", lr=-1.0))
     with pytest.raises(ValueError, match="photo: dtype float32, expected uint8"):
         srgb_to_linear(np.zeros((2, 2, 3), np.float32))
+    small_env = train.load_config(write_config(dataset, "small_env", env_height=4, steps=1))
+    with pytest.raises(ValueError, match=r"train: env size 8x16, the light net's is 4x16"):
+        train.train(small_env, tmp_path / "run", quiet=True)
     # the command line: one line naming the file, exit code 2
     assert train.main([str(tmp_path / "missing.py")]) == 2
 

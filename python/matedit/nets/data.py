@@ -45,6 +45,14 @@ def chunks(folder) -> list[dict]:
     return recs
 
 
+def spec_digest(folder) -> str | None:
+    """The SHA-256 of the spec that wrote a synth folder (its manifest's), if it has one."""
+    try:
+        return json.loads((pathlib.Path(folder) / "manifest.json").read_text()).get("spec_sha256")
+    except (OSError, ValueError):
+        return None
+
+
 def decode(key: str, members: dict[str, bytes], where: str) -> dict:
     """One sample's tensors from its tar members: image, normals, env (float32, channels
     last), mask (bool; mask.npy where present, else normals != 0), ctrl (float32 (108,)),

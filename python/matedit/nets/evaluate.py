@@ -32,9 +32,8 @@ import numpy as np
 import torch
 
 import matedit.torch
-from matedit.nets.data import collate, samples
-from matedit.nets.train import spec_digest
-from matedit.nets.model import Nets, load, merl_presets, normalise, prepare, probe_scene, spheres
+from matedit.nets.data import collate, samples, spec_digest
+from matedit.nets.model import Nets, check_sizes, load, merl_presets, normalise, prepare, probe_scene, spheres
 
 # ---------------------------------------------------------------------------------------
 # baselines
@@ -131,7 +130,7 @@ def evaluate(nets: Nets, folder, batch_size: int = 8, limit: int | None = None, 
     while batch := list(itertools.islice(stream, batch_size)):
         count += len(batch)
         with torch.no_grad():
-            _eval_batch(nets, collate(batch), probe, m_mean, l_mean, device, acc, angles)
+            _eval_batch(nets, collate(batch), probe, m_mean, l_mean, device, acc, angles, str(folder))
     if count == 0:
         raise ValueError(f"{folder}: no samples")
     res = {"samples": count}
@@ -147,13 +146,9 @@ def evaluate(nets: Nets, folder, batch_size: int = 8, limit: int | None = None, 
     return res
 
 
-def _eval_batch(nets, b, probe, m_mean, l_mean, device, acc, angles) -> None:
+def _eval_batch(nets, b, probe, m_mean, l_mean, device, acc, angles, where: str) -> None:
     image, mask = b["image"], b["mask"]
-    k = 2 ** (nets.cfg.levels - 1)
-    if image.shape[1] % k or image.shape[2] % k:
-        raise ValueError(f"image size {image.shape[1]}x{image.shape[2]} is not a multiple of {k} (the nets' levels)")
-    if tuple(b["env"].shape[1:3]) != (nets.cfg.env_height, nets.cfg.env_width):
-        raise ValueError(f"env size {tuple(b['env'].shape[1:3])} differs from the nets' {nets.cfg.env_height}x{nets.cfg.env_width}")
+    check_sizes(nets.cfg, image, b["env"], where)
     target, s = normalise(image, mask)
     env_t = b["env"] / s[:, None, None, None]
     x = prepare(image, mask)
@@ -176,7 +171,7 @@ def _eval_batch(nets, b, probe, m_mean, l_mean, device, acc, angles) -> None:
         for j in range(nb):
             acc[kind].append(
                 {
-                    "mask_iou": iou(pred_mask[j], mask[j]) if kind == "nets" else iou(torch.ones_like(mask[j]), mask[j]),
+                    "mask_iou": iou(pred_mask[j] if kind == "nets" else torch.ones_like(mask[j]), mask[j]),
                     "material_sphere_psnr_db": psnr(sph[j], sph_true[j]),
                     "light_si_log_rmse": si_log_rmse(env[j], env_t[j]),
                     "render_psnr_db": psnr(i_p[j], target[j], mask[j]),

@@ -128,6 +128,17 @@ def slog(x: torch.Tensor) -> torch.Tensor:
     return torch.sign(x) * torch.log1p(x.abs())
 
 
+def check_sizes(cfg: "NetsConfig", image: torch.Tensor, env: torch.Tensor, where: str) -> None:
+    """ValueError naming `where` unless images (B, H, W, 3) fit the U-Net (H and W multiples
+    of 2^(levels - 1)) and maps (B, H_L, W_L, 3) are the light net's size."""
+    k = 2 ** (cfg.levels - 1)
+    if image.shape[1] % k or image.shape[2] % k:
+        raise ValueError(f"{where}: image size {image.shape[1]}x{image.shape[2]} is not a multiple of {k} ({cfg.levels} levels)")
+    if tuple(env.shape[1:3]) != (cfg.env_height, cfg.env_width):
+        h, w = env.shape[1:3]
+        raise ValueError(f"{where}: env size {h}x{w}, the light net's is {cfg.env_height}x{cfg.env_width}")
+
+
 # ---------------------------------------------------------------------------------------
 # layers
 

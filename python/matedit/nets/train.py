@@ -28,6 +28,7 @@ slog = sign log(1 + |x|) of the normalised image, see model.py):
 from __future__ import annotations
 
 import argparse
+import inspect
 import json
 import math
 import os
@@ -44,8 +45,8 @@ import torch.distributed as dist
 import torch.nn.functional as F
 
 import matedit.torch
-from matedit.nets.data import ChunkStream
-from matedit.nets.model import Nets, NetsConfig, normalise, prepare, probe_scene, save, slog, spheres
+from matedit.nets.data import ChunkStream, spec_digest
+from matedit.nets.model import Nets, NetsConfig, check_sizes, normalise, prepare, probe_scene, save, slog, spheres
 
 DEFAULTS = {
     "data": "ds",  # the training folder of `matedit synth`
@@ -86,6 +87,7 @@ def load_config(path) -> dict:
         given = runpy.run_path(str(path))
     except Exception as e:
         raise ValueError(f"{path}: {type(e).__name__}: {e}") from None
+    # the file's settings: its public names but for imported modules and functions
     given = {k: v for k, v in given.items() if not k.startswith("_") and not callable(v) and not hasattr(v, "__file__")}
     cfg = dict(DEFAULTS)
     for k, v in given.items():
@@ -193,13 +195,6 @@ def write_atomic(obj, path: pathlib.Path) -> None:
     os.replace(tmp, path)
 
 
-def spec_digest(folder: str) -> str | None:
-    try:
-        return json.loads((pathlib.Path(folder) / "manifest.json").read_text()).get("spec_sha256")
-    except (OSError, ValueError):
-        return None
-
-
 def train(cfg: dict, out, resume: bool = False, stop_at: int | None = None, quiet: bool = False) -> dict:
     """Trains (or resumes) a run into folder `out`; returns {"step", "history", "seconds"}."""
     out = pathlib.Path(out)
@@ -231,7 +226,13 @@ def train(cfg: dict, out, resume: bool = False, stop_at: int | None = None, quie
         torch.set_rng_state(ck["rng"]["torch"])
         np.random.set_state(ck["rng"]["numpy"])
         random.setstate(ck["rng"]["python"])
-    model = torch.nn.parallel.DistributedDataParallel(nets, broadcast_buffers=False) if world > 1 else nets
+    model = nets
+    if world > 1:
+        # the buffers (the presets, the mean-light sums) are equal at the start and kept so by
+        # an all-reduce: no per-step broadcast (newer torch calls the option forward_sync_buffers)
+        ddp = torch.nn.parallel.DistributedDataParallel
+        new = "forward_sync_buffers" in inspect.signature(ddp).parameters
+        model = ddp(nets, **{"forward_sync_buffers" if new else "broadcast_buffers": False})
     if rank == 0:
         out.mkdir(parents=True, exist_ok=True)
 
@@ -279,12 +280,14 @@ def train(cfg: dict, out, resume: bool = False, stop_at: int | None = None, quie
     batches = iter(loader)
     while step < end:
         batch = next(batches)
+        check_sizes(nets.cfg, batch["image"], batch["env"], cfg["data"])
         for g in opt.param_groups:
             g["lr"] = lr_at(cfg, step)
         parts = losses(model, batch, cfg, probe)
         total = sum(weights[k] * v for k, v in parts.items())
         if not torch.isfinite(total):
-            raise ValueError(f"step {step}: the loss is {total.item()} ({', '.join(f'{k} {v.item():.3g}' for k, v in parts.items())})")
+            detail = ", ".join(f"{k} {v.item():.3g}" for k, v in parts.items())
+            raise ValueError(f"step {step}: the loss is {total.item()} ({detail})")
         opt.zero_grad(set_to_none=True)
         total.backward()
         opt.step()
@@ -302,15 +305,18 @@ def train(cfg: dict, out, resume: bool = False, stop_at: int | None = None, quie
         tick = now
         history.append({"step": step, "total": total.item(), **{k: v.item() for k, v in parts.items()}})
         if rank == 0 and not quiet and (step % cfg["log_every"] == 0 or step == end):
-            ms = 1000 * (now - t_log) / (cfg["log_every"] if step % cfg["log_every"] == 0 else step % cfg["log_every"])
+            ms = 1000 * (now - t_log) / (step % cfg["log_every"] or cfg["log_every"])
             detail = " ".join(f"{k} {v.item():.4f}" for k, v in parts.items())
-            print(f"step {step}/{cfg['steps']} loss {total.item():.4f} ({detail}) lr {lr_at(cfg, step - 1):.2e} {ms:.0f} ms/step", flush=True)
+            lr = lr_at(cfg, step - 1)
+            print(f"step {step}/{cfg['steps']} loss {total.item():.4f} ({detail}) lr {lr:.2e} {ms:.0f} ms/step", flush=True)
             t_log = now
         if step % cfg["checkpoint_every"] == 0 or now - last_ckpt > cfg["checkpoint_seconds"]:
             checkpoint()
             last_ckpt = time.time()
     agree = ranks_agree()
     checkpoint()
+    if world > 1:
+        dist.barrier()  # no rank leaves (and tears down gloo) while rank 0 still writes
     return {"step": step, "history": history, "seconds": seconds}
 
 
