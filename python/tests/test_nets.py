@@ -72,20 +72,21 @@ def write_config(root: pathlib.Path, name: str, **changes) -> pathlib.Path:
 
 
 def test_loss_falls_and_run_files(dataset):
-    cfg = train.load_config(write_config(dataset, "falls"))
+    cfg = train.load_config(write_config(dataset, "falls", steps=50))
     out = dataset / "runs" / "falls"
     res = train.train(cfg, out, quiet=True)
     totals = [r["total"] for r in res["history"]]
-    assert res["step"] == 30 and len(totals) == 30 and all(math.isfinite(t) for t in totals)
-    first, last = np.mean(totals[:5]), np.mean(totals[-5:])
+    assert res["step"] == 50 and len(totals) == 50 and all(math.isfinite(t) for t in totals)
+    # seeds 5 to 8 of this config gave ratios 0.63 to 0.72
+    first, last = np.mean(totals[:5]), np.mean(totals[-10:])
     assert last < 0.8 * first, (first, last)
     for f in ("ckpt.pt", "weights.safetensors", "losses.png", "run.json"):
         assert (out / f).is_file(), f
     run = json.loads((out / "run.json").read_text())
-    assert run["seed"] == 5 and run["step"] == 30 and len(run["data_spec_sha256"]) == 64
+    assert run["seed"] == 5 and run["step"] == 50 and len(run["data_spec_sha256"]) == 64
     nets = load(out / "weights.safetensors")
     assert nets.cfg == NetsConfig(width=8, levels=2, env_height=8, env_width=16)
-    assert float(nets.light_count) == 30 * 4  # the mean-light baseline saw every sample
+    assert float(nets.light_count) == 50 * 4  # the mean-light baseline saw every sample
 
     # evaluation on the held-out split: finite metrics beside the baselines', the CLI's JSON
     js = out / "eval.json"
