@@ -252,3 +252,13 @@ def test_a_mask_member_is_used(dataset, tmp_path):
     assert len(got) == 8 and all(torch.equal(s["mask"], torch.from_numpy(mask != 0)) for _, s in got)
     plain = [s for _, s in data.read_chunk(src)]
     assert torch.equal(plain[0]["mask"], plain[0]["normals"].abs().sum(-1) > 0)
+
+
+def test_a_missing_sample_is_named(dataset, tmp_path):
+    (tmp_path / "chunk-000000.json").write_bytes((dataset / "train" / "chunk-000000.json").read_bytes())
+    with tarfile.open(dataset / "train" / "chunk-000000.tar") as t, tarfile.open(tmp_path / "chunk-000000.tar", "w") as out:
+        for info in t.getmembers():
+            if not info.name.startswith("00000003."):
+                out.addfile(info, t.extractfile(info))
+    with pytest.raises(ValueError, match="chunk-000000.tar: sample 00000003 is missing"):
+        list(zip(range(3), data.ChunkStream(tmp_path, 4, shuffle_buffer=1)))

@@ -156,6 +156,8 @@ class ChunkStream(torch.utils.data.IterableDataset):
                 wanted.setdefault(c, set()).add(key)
             for c, key in order:
                 while (c, key) not in pending:
+                    if loaded > c:
+                        raise ValueError(f"{recs[c]['file']}: sample {key} is missing (its record counts it)")
                     # read the next chunk, keeping only the samples still to come
                     if loaded in wanted:
                         for k, s in read_chunk(recs[loaded]["file"], wanted[loaded]):

@@ -269,8 +269,10 @@ class Nets(nn.Module):
         return {"normals": n, "mask_logits": logits, "ctrl": ctrl, "weights": weights, "env": self.light(x, mask)}
 
     def mean_light(self) -> torch.Tensor:
-        """The geometric mean of the training lights seen (normalised), (H_L, W_L, 3)."""
-        return torch.exp(self.log_light_sum / self.light_count.clamp_min(1)).float()
+        """The geometric mean of the training lights seen (normalised), (H_L, W_L, 3), as the
+        light loss measures: exp(mean log(L / s + 1e-3)) - 1e-3. Without training, ones."""
+        mean = torch.exp(self.log_light_sum / self.light_count.clamp_min(1)) - 1e-3
+        return torch.where(self.light_count > 0, mean.clamp_min(0), torch.ones_like(mean)).float()
 
     @torch.no_grad()
     def predict(self, image, mask=None) -> dict:
@@ -278,7 +280,13 @@ class Nets(nn.Module):
         as NumPy arrays; the light is in the image's units (times s). mask: (H, W) or
         (B, H, W), or None to use the predicted one."""
         was = self.training
-        self.eval()
+        try:
+            self.eval()
+            return self._predict(image, mask)
+        finally:
+            self.train(was)
+
+    def _predict(self, image, mask) -> dict:
         img = check_image("image", image).to(self.log_light_sum.device)
         k = 2 ** (self.cfg.levels - 1)
         if img.shape[1] % k or img.shape[2] % k:
@@ -295,7 +303,6 @@ class Nets(nn.Module):
         x = prepare(img, m)
         out = self(x, m)
         _, s = normalise(img, m)
-        self.train(was)
         single = np.asarray(image).ndim == 3 if not isinstance(image, torch.Tensor) else image.dim() == 3
         res = {
             "normals": (out["normals"] * m[..., None]).numpy(),
