@@ -158,31 +158,44 @@ def losses(nets, batch: dict, cfg: dict, probe) -> dict:
 
 
 def plot(history: list[dict], path: pathlib.Path) -> None:
-    """Loss curves (log scale) as a PNG, drawn with PIL."""
+    """Loss curves as a PNG drawn with PIL: each part and the total against the step, log
+    scale, as running means over 1/50 of the run (at least 1 step)."""
     from PIL import Image, ImageDraw
 
-    w, h, pad = 640, 360, 40
+    w, h, left, top, right, bottom = 720, 400, 60, 40, 20, 40
     img = Image.new("RGB", (w, h), "white")
     d = ImageDraw.Draw(img)
     colours = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#000000"]
     keys = [k for k in (*PARTS, "total") if any(k in r for r in history)]
-    vals = [r[k] for r in history for k in keys if r.get(k, 0) > 0]
+    win = max(1, len(history) // 50)
+    curves = {}
+    for k in keys:
+        steps = [r["step"] for r in history if r.get(k, 0) > 0]
+        vals = [r[k] for r in history if r.get(k, 0) > 0]
+        smooth = [sum(vals[max(0, i - win + 1) : i + 1]) / len(vals[max(0, i - win + 1) : i + 1]) for i in range(len(vals))]
+        curves[k] = list(zip(steps, smooth))
+    vals = [v for c in curves.values() for _, v in c]
     if not vals:
         return
-    lo, hi = math.log10(min(vals)), math.log10(max(vals))
-    hi = hi if hi > lo else lo + 1
+    lo, hi = math.floor(math.log10(min(vals))), math.ceil(math.log10(max(vals)))
+    hi = max(hi, lo + 1)
     last = max(1, history[-1]["step"])
-    d.rectangle([pad, pad // 2, w - pad // 2, h - pad], outline="black")
+
+    def xy(step, v):
+        x = left + (w - left - right) * step / last
+        return x, h - bottom - (h - top - bottom) * (math.log10(v) - lo) / (hi - lo)
+
+    d.rectangle([left, top, w - right, h - bottom], outline="black")
+    for e in range(lo, hi + 1):
+        y = xy(0, 10.0**e)[1]
+        d.line([(left - 4, y), (left, y)], fill="black")
+        d.text((4, y - 6), f"1e{e}", fill="black")
     for i, k in enumerate(keys):
-        pts = [
-            (pad + (w - 1.5 * pad) * r["step"] / last, h - pad - (h - 1.5 * pad) * (math.log10(r[k]) - lo) / (hi - lo))
-            for r in history
-            if r.get(k, 0) > 0
-        ]
-        if len(pts) > 1:
-            d.line(pts, fill=colours[i % len(colours)], width=2 if k == "total" else 1)
-        d.text((pad + 8 + 80 * i, pad // 2 + 6), k, fill=colours[i % len(colours)])
-    d.text((pad, h - pad + 8), f"step 0 .. {last}   loss 10^{lo:.2f} .. 10^{hi:.2f} (log scale)", fill="black")
+        colour = colours[i % len(colours)]
+        if len(curves[k]) > 1:
+            d.line([xy(s, v) for s, v in curves[k]], fill=colour, width=2 if k == "total" else 1)
+        d.text((left + 90 * i, 12), k, fill=colour)
+    d.text((left, h - bottom + 10), f"step 0 .. {last}; running mean over {win} step(s)", fill="black")
     img.save(path)
 
 
