@@ -237,7 +237,7 @@ def test_balloon_inflates_a_disc_into_a_sphere():
 def test_a_mask_member_is_used(dataset, tmp_path):
     """A sample's mask.npy, where present, is its mask (not the normals' support)."""
     src = dataset / "train" / "chunk-000000.tar"
-    mask = np.zeros((16, 16), np.uint8)
+    mask = np.zeros((16, 16), np.float32)  # as synth writes it
     mask[2:9, 3:7] = 1
     buf = io.BytesIO()
     np.save(buf, mask)

@@ -197,8 +197,9 @@ class NormalsNet(nn.Module):
 
 
 class GlobalNet(nn.Module):
-    """An encoder on image and mask (4 channels), global average pooling over the object,
-    and a two-layer head with `nout` outputs."""
+    """An encoder on image and mask (4 channels), average pooling over the object and over
+    the whole image, and a two-layer head with `nout` outputs. It sees the background too:
+    where a dataset shows the light map or a photo behind the object, that is evidence."""
 
     def __init__(self, cfg: NetsConfig, nout: int):
         super().__init__()
@@ -208,7 +209,7 @@ class GlobalNet(nn.Module):
 
     def forward(self, x: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
         m = mask.to(x.dtype)[:, None]
-        f = self.enc(torch.cat([x * m, m], 1))[-1]
+        f = self.enc(torch.cat([x, m], 1))[-1]
         mf = F.adaptive_avg_pool2d(m, f.shape[-2:])
         on_object = (f * mf).sum((2, 3)) / mf.sum((2, 3)).clamp_min(1e-6)
         return self.head(torch.cat([on_object, f.mean((2, 3))], 1))
