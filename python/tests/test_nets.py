@@ -159,7 +159,7 @@ def test_stream_splits_by_rank_and_resumes(dataset):
         next(iter(data.ChunkStream(folder, 4, rank=0, world=6)))
 
 
-def test_bad_inputs_raise_value_error(dataset, tmp_path):
+def test_bad_inputs_raise_value_error(dataset, tmp_path, capsys):
     nets = Nets(NetsConfig(width=4, levels=2, env_height=8, env_width=16))
     with pytest.raises(ValueError, match=r"image: shape \(16, 16\), expected \(H, W, 3\)"):
         nets.predict(np.zeros((16, 16), np.float32))
@@ -190,8 +190,15 @@ def test_bad_inputs_raise_value_error(dataset, tmp_path):
     small_env = train.load_config(write_config(dataset, "small_env", env_height=4, steps=1))
     with pytest.raises(ValueError, match=r"train: env size 8x16, the light net's is 4x16"):
         train.train(small_env, tmp_path / "run", quiet=True)
-    # the command line: one line naming the file, exit code 2
+    with pytest.raises(ValueError, match="linearise it with srgb_to_linear"):
+        check_image("image", torch.zeros((16, 16, 3), dtype=torch.uint8))
+    # the command lines: one line naming the file, exit code 2
     assert train.main([str(tmp_path / "missing.py")]) == 2
+    assert evaluate.main([str(junk), str(dataset / "test")]) == 2
+    save(nets, tmp_path / "w.safetensors")
+    capsys.readouterr()
+    assert evaluate.main([str(tmp_path / "w.safetensors"), str(tmp_path / "nowhere")]) == 2
+    assert capsys.readouterr().err.strip().endswith("nowhere: not a folder (a dataset is a folder that `matedit synth` wrote)")
 
 
 def test_predict_and_weights_round_trip(tmp_path):

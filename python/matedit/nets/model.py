@@ -83,7 +83,9 @@ def check_image(name: str, image) -> torch.Tensor:
     anything else raises ValueError naming `name`. Negative values are allowed: the layer
     renders some mixes of MERL fits slightly negative where a lobe's scale is negative."""
     if isinstance(image, torch.Tensor):
-        t = image.detach()
+        t = image.detach().cpu()
+        if t.dtype == torch.uint8:
+            raise ValueError(f"{name}: uint8 values; an 8-bit photo is sRGB: linearise it with srgb_to_linear")
     else:
         try:
             a = np.asarray(image)
