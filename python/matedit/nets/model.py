@@ -9,19 +9,24 @@ Input convention. Images are linear HDR RGB. Light and material share a scale am
 (the image of a light s L is s times the image of L), so an image is divided by its mean
 over the object, s = mean(I[mask]), and the light net predicts the light divided by the same
 s: `normalise(image, mask)` gives (I / s, s), and the training target is L / s. The nets then
-see slog(I / s) = sign log(1 + |I / s|) (`prepare`), which keeps highlights hundreds of times the mean within a few
-units. 8-bit sRGB photos are linearised first (`srgb_to_linear`).
+see slog(I / s) = sign log(1 + |I / s|) (`prepare`), which keeps highlights hundreds of
+times the mean within a few units. 8-bit sRGB photos are linearised first
+(`srgb_to_linear`).
 
 The parts:
 - `NormalsNet`, a small U-Net: image -> unit normal per pixel in the camera frame (x right,
   y up, z towards the viewer; the output is normalised) and a foreground logit.
 - `MaterialNet`: image and mask -> 108 control points as a convex mix of the 90 fitted MERL
   presets (softmax weights). Every mix is a valid material: its scales and exponents lie
-  within the presets' ranges, so exponents are >= 0 and the lobes are those of measured
-  materials. Log-space exponents would also keep m1 >= 0, but leave scales free, whose
-  negative values make a BRDF negative where seen; and the presets' exponents span 0 to 1e4,
-  so a free regression spends its capacity on that range. The mix is what `synth`'s
-  {"random": "merl"} draws, so the training materials lie in the span the net can reach.
+  within the presets' ranges, so exponents are >= 0 (and <= 1e4, clamped against float32
+  rounding) and the lobes stay near those of measured materials. Log-space exponents would
+  also keep m1 >= 0, but leave the scales free, and a negative scale makes a lobe negative;
+  and the presets' exponents span 0 to 1e4, a range a free regression spends its capacity
+  on. A mix is not guaranteed non-negative either (13 presets have negative scales, and the
+  BRDF is not linear in the control points: some of `synth`'s random mixes render slightly
+  negative pixels, though no single preset does on a sphere under the built-in sky), but
+  it is what `synth`'s {"random": "merl"} draws, so the training materials lie in the span
+  the net can reach.
 - `LightNet`: image and mask -> an HDR lat-long map (16 x 32 by default) as exp of its
   output, i.e. predicted in log space, where the sun and the sky's dark side are equally
   weighted.
