@@ -4,13 +4,17 @@
 //!
 //! The lights are the built-in procedural sky ([`crate::defaults::procedural_env`]) with
 //! its sun turned to four azimuths (front-left, right, behind, left), so that highlights
-//! land at the centre, across and at the rim of the sphere. They are not the HDRIs the
-//! fit-quality report measures with, so the report's figures are not fitted to.
+//! land at the centre, across and at the rim of the sphere, and (with [`Judge::broad`])
+//! three broad procedural lights of [`crate::envgen`] (an overcast sky, a studio's area
+//! lights, a room with a window), on which a fit's mid-range and grazing values count
+//! more than under a sun. They are not the HDRIs the fit-quality report measures with, so
+//! the report's figures are not fitted to.
 
 use crate::brdf::Isotropic;
 use crate::brdf::render::render_measured;
 use crate::camera::Camera;
 use crate::defaults::procedural_env;
+use crate::envgen::Kind;
 use crate::envmap::{Convention, EnvMap};
 use crate::error::Result;
 use crate::material::Material;
@@ -20,6 +24,9 @@ use crate::scene::{NormalMap, Scene};
 /// The judging sphere's size and the lights' size.
 const SPHERE: usize = 32;
 const ENV: (usize, usize) = (32, 64);
+/// The broad lights' kinds and the seed that draws them.
+const BROAD: [Kind; 3] = [Kind::Overcast, Kind::Studio, Kind::Indoor];
+const BROAD_SEED: u64 = 1;
 
 /// Measured images to compare candidates with.
 pub struct Judge {
@@ -32,11 +39,20 @@ pub struct Judge {
 }
 
 impl Judge {
-    /// Renders `measured` under the judging lights.
+    /// Renders `measured` under the four suns.
     pub fn new(measured: &dyn Isotropic) -> Result<Self> {
+        Self::with_lights(measured, false)
+    }
+
+    /// Renders `measured` under the four suns and the three broad lights.
+    pub fn broad(measured: &dyn Isotropic) -> Result<Self> {
+        Self::with_lights(measured, true)
+    }
+
+    fn with_lights(measured: &dyn Isotropic, broad: bool) -> Result<Self> {
         let normals = NormalMap::sphere(SPHERE);
         let base = procedural_env(ENV.0, ENV.1, Convention::Equirect);
-        let envs: Vec<EnvMap> = (0..4)
+        let mut envs: Vec<EnvMap> = (0..4)
             .map(|q| {
                 let shift = q * ENV.1 / 4;
                 let mut texels = base.texels.clone();
@@ -49,6 +65,11 @@ impl Judge {
                 }
             })
             .collect();
+        if broad {
+            for kind in BROAD {
+                envs.push(crate::envgen::generate(kind, BROAD_SEED, ENV.0, ENV.1)?);
+            }
+        }
         let mask: Vec<bool> = normals.normals.iter().map(|n| n[2] > 0.0).collect();
         let mut images = Vec::with_capacity(envs.len());
         for env in &envs {
