@@ -39,9 +39,11 @@ fn shipped_fits_match_a_refit() {
             .iter()
             .find(|m| m.name == name)
             .expect("shipped fit");
-        // the presets were made before the joint refinement and its broader judge
+        // the presets were made before the joint refinement and its broader judge, with
+        // 5% slack for fewer lobes
         let options = Options {
             joint: false,
+            tolerance: 0.05,
             ..Options::default()
         };
         let refit = fit(net, name, &options).expect("fit");

@@ -33,7 +33,8 @@ pub enum Lobes {
 pub struct Options {
     /// Lobe count.
     pub lobes: Lobes,
-    /// Relative slack over the best error allowed to a fit with fewer lobes.
+    /// Relative slack over the best error allowed to a fit with fewer lobes (0: the best
+    /// is kept; the presets were made with 0.05 and no joint refinement).
     pub tolerance: f64,
     /// The loss's scale c: residuals are taken on c ln(1 + f / c), linear below c and
     /// logarithmic above (infinite: linear).
@@ -54,7 +55,7 @@ impl Default for Options {
     fn default() -> Self {
         Options {
             lobes: Lobes::Auto,
-            tolerance: 0.05,
+            tolerance: 0.0,
             loss_scale: 1.0,
             grid: Grid::default(),
             judge: true,
