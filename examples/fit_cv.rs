@@ -3,7 +3,8 @@
 //!
 //! ```text
 //! cargo run --release --example fit_cv -- [--merl ../shared/data/merl_nbrdf]
-//!     [--envmaps ../shared/data/envmaps] [--set held-out|tuning] [--limit N]
+//!     [--envmaps ../shared/data/envmaps] [--set held-out|tuning|all] [--limit N]
+//!     [--maps studio,...]
 //!     [--methods current,joint,new] [--tolerance REL (new only)] [--sphere 64] [--env-size 64x128]
 //!     [--cache DIR]
 //! ```
@@ -12,7 +13,8 @@
 //! (indices 2, 5, 8, ...: 30 of 90) held out, the other 60 the tuning set; the HDRI
 //! `forest` is held out from every choice (`--set tuning` renders `studio` and `sunset`
 //! only).
-//! `--limit N` takes the first N of the chosen set. Each material is fitted by each
+//! `--limit N` takes the first N of the chosen set; `--set all` takes all 90 (for what
+//! refitting the presets would change, not for choices) and `--maps` some of the maps. Each material is fitted by each
 //! method, rendered on a sphere under each HDRI with the fast CPU path and compared with
 //! the sphere rendered with the measured BRDF (`matedit::brdf::render::render_measured`):
 //! PSNR over the sphere's pixels with the measured image's largest value as the peak, as
@@ -71,6 +73,8 @@ struct Args {
     merl: PathBuf,
     envmaps: PathBuf,
     held_out: bool,
+    all: bool,
+    only_maps: Option<Vec<String>>,
     limit: Option<usize>,
     methods: Vec<Method>,
     tolerance: f64,
@@ -84,6 +88,8 @@ fn args() -> Result<Args, String> {
         merl: "../shared/data/merl_nbrdf".into(),
         envmaps: "../shared/data/envmaps".into(),
         held_out: true,
+        all: false,
+        only_maps: None,
         limit: None,
         methods: vec![Method::Current, Method::Joint, Method::New],
         tolerance: Options::default().tolerance,
@@ -101,9 +107,14 @@ fn args() -> Result<Args, String> {
                 a.held_out = match value()?.as_str() {
                     "held-out" => true,
                     "tuning" => false,
-                    v => return Err(format!("--set: '{v}' is not held-out or tuning")),
+                    "all" => {
+                        a.all = true;
+                        false
+                    }
+                    v => return Err(format!("--set: '{v}' is not held-out, tuning or all")),
                 }
             }
+            "--maps" => a.only_maps = Some(value()?.split(',').map(String::from).collect()),
             "--limit" => a.limit = Some(value()?.parse().map_err(|e| format!("--limit: {e}"))?),
             "--methods" => {
                 a.methods = value()?
@@ -231,7 +242,8 @@ fn run() -> Result<(), String> {
     } else {
         a.merl.clone()
     };
-    let mut nets = split(nbrdf::read(&file).map_err(|e| e.to_string())?, a.held_out);
+    let nets = nbrdf::read(&file).map_err(|e| e.to_string())?;
+    let mut nets = if a.all { nets } else { split(nets, a.held_out) };
     if let Some(n) = a.limit {
         nets.truncate(n);
     }
@@ -245,14 +257,24 @@ fn run() -> Result<(), String> {
             a.envmaps.display()
         ));
     }
-    if !a.held_out {
+    if !a.held_out && !a.all {
         // Tuning never looks at the held-out map.
         maps.retain(|(name, _)| name != HELD_OUT_MAP);
+    }
+    if let Some(only) = &a.only_maps {
+        maps.retain(|(name, _)| only.contains(name));
+        if maps.is_empty() {
+            return Err(format!("--maps: none of {} found", only.join(", ")));
+        }
     }
     let normals = NormalMap::sphere(a.sphere);
     let mask: Vec<bool> = normals.normals.iter().map(|n| n[2] > 0.0).collect();
     let renderer = Renderer::new(Device::Cpu).map_err(|e| e.to_string())?;
-    let set = if a.held_out { "held-out" } else { "tuning" };
+    let set = match (a.all, a.held_out) {
+        (true, _) => "all",
+        (false, true) => "held-out",
+        (false, false) => "tuning",
+    };
     eprintln!(
         "{} {set} materials, maps {} (held out: {HELD_OUT_MAP}), {} threads",
         nets.len(),

@@ -1,7 +1,7 @@
 //! Fitting the DSBRDF to an isotropic BRDF (a MERL table, an NBRDF network, an analytic
 //! model): the 108 control points are fitted jointly against the BRDF over
 //! (theta_h, theta_d), each channel's lobes by Levenberg-Marquardt ([`lm`]) on the
-//! samples of [`samples`].
+//! samples of [`samples`], the judge's pick then refined by [`joint`] least squares.
 
 pub mod job;
 pub mod joint;
@@ -109,8 +109,11 @@ const FINAL_STEPS: usize = 120;
 ///
 /// The lobes' shapes are found on the channels' mean, nested: the best 1-lobe fit over
 /// [`START_EXPONENTS`], then each next lobe added to the previous best with each start
-/// exponent. Each channel is then refined from the mean's fit. Deterministic: one thread,
-/// fixed order.
+/// exponent. Each channel is then refined from the mean's fit; candidates refined with
+/// other losses, and (with [`Options::joint`]) the judge's pick refined by [`joint`] least
+/// squares, are judged by their images ([`judge`]). Deterministic: fixed order, and the
+/// judge's renders are bitwise equal for any thread count (the fast CPU path's SIMD
+/// instruction set, chosen at run time, may round differently on another machine).
 pub fn fit(brdf: &dyn Isotropic, name: &str, options: &Options) -> Result<Fitted> {
     let counts: Vec<usize> = match options.lobes {
         Lobes::Fixed(n) if (1..=N_LOBES).contains(&n) => vec![n],
