@@ -9,6 +9,9 @@
 //!     [--sphere 64] [--env-size 64x128] [--only a,b]
 //! ```
 
+#[path = "common/maps.rs"]
+mod maps;
+
 use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -16,8 +19,7 @@ use std::time::Instant;
 use matedit::brdf::nbrdf::{self, Nbrdf};
 use matedit::brdf::render::render_measured;
 use matedit::fit::{Fitted, Options, fit};
-use matedit::io::resample::downsample;
-use matedit::{Batch, Camera, Convention, Device, EnvMap, Image, NormalMap, Renderer, Scene};
+use matedit::{Batch, Camera, Device, Image, NormalMap, Renderer, Scene};
 use plotters::prelude::*;
 use plotters::style::FontStyle;
 use rayon::prelude::*;
@@ -48,14 +50,7 @@ fn args() -> Result<Args, String> {
             "--envmaps" => a.envmaps = value()?.into(),
             "--out" => a.out = value()?.into(),
             "--sphere" => a.sphere = value()?.parse().map_err(|e| format!("--sphere: {e}"))?,
-            "--env-size" => {
-                let v = value()?;
-                let (h, w) = v.split_once('x').ok_or("--env-size is HxW")?;
-                a.env_size = (
-                    h.parse().map_err(|e| format!("--env-size: {e}"))?,
-                    w.parse().map_err(|e| format!("--env-size: {e}"))?,
-                );
-            }
+            "--env-size" => a.env_size = maps::env_size(&value()?)?,
             "--only" => a.only = Some(value()?.split(',').map(String::from).collect()),
             other => return Err(format!("unknown option {other}")),
         }
@@ -125,29 +120,7 @@ fn run() -> Result<(), String> {
     if let Some(only) = &a.only {
         nets.retain(|n| only.contains(&n.name));
     }
-    let mut env_paths: Vec<PathBuf> = std::fs::read_dir(&a.envmaps)
-        .map_err(|e| format!("{}: {e}", a.envmaps.display()))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.extension().is_some_and(|x| x == "exr"))
-        .collect();
-    env_paths.sort();
-    if env_paths.is_empty() {
-        return Err(format!("{}: no .exr maps", a.envmaps.display()));
-    }
-    let envs: Vec<(String, EnvMap)> = env_paths
-        .iter()
-        .map(|p| {
-            let loaded =
-                matedit::io::load_env(p, Convention::Equirect).map_err(|e| e.to_string())?;
-            let env = downsample(&loaded.env, a.env_size.0, a.env_size.1)?;
-            let name = p
-                .file_stem()
-                .unwrap_or_default()
-                .to_string_lossy()
-                .into_owned();
-            Ok((name, env))
-        })
-        .collect::<Result<_, String>>()?;
+    let envs = maps::load_maps(&a.envmaps, a.env_size)?;
     let normals = NormalMap::sphere(a.sphere);
     let mask: Vec<bool> = normals.normals.iter().map(|n| n[2] > 0.0).collect();
     let renderer = Renderer::new(Device::Cpu).map_err(|e| e.to_string())?;

@@ -9,7 +9,9 @@ use assert_cmd::cargo::cargo_bin_cmd;
 use matedit::Material;
 use matedit::brdf::{Isotropic, merl, nbrdf};
 use matedit::fit::job::Bundle;
-use matedit::fit::{Lobes, Options, fit};
+use matedit::fit::samples::{Grid, Tabulated};
+use matedit::fit::{Lobes, Options, fit, joint};
+use matedit::material::idx;
 
 const NBRDF: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/data/merl/merl_nbrdf.json");
 const FITS: &str = include_str!("../data/merl/fits.json");
@@ -37,7 +39,14 @@ fn shipped_fits_match_a_refit() {
             .iter()
             .find(|m| m.name == name)
             .expect("shipped fit");
-        let refit = fit(net, name, &Options::default()).expect("fit");
+        // the presets were made before the joint refinement and its broader judge, with
+        // 5% slack for fewer lobes
+        let options = Options {
+            joint: false,
+            tolerance: 0.05,
+            ..Options::default()
+        };
+        let refit = fit(net, name, &options).expect("fit");
         assert_eq!(refit.best().lobes, shipped.lobes, "{name}");
         for (i, (a, b)) in refit
             .best()
@@ -241,4 +250,86 @@ fn bad_inputs_fail_with_one_line_and_no_output() {
         .unwrap();
     assert_eq!(out.status.code(), Some(2));
     assert!(!out_path.exists());
+}
+
+/// A DSBRDF whose glossy lobe's scale changes sign across theta_d (below 0 at normal
+/// incidence, rising towards grazing) over a constant lobe that keeps it positive: the
+/// lobe-per-sign log-parameters of the staged fit cannot take it, free scales can.
+fn sign_changing() -> Material {
+    let mut ctrl = [0.0; 108];
+    let glossy = [-0.3, -0.15, 0.1, 0.4, 0.8, 1.2];
+    for k in 0..3 {
+        for j in 0..6 {
+            ctrl[idx(k, 0, 0, j)] = [0.5, 0.4, 0.35][k];
+            ctrl[idx(k, 1, 0, j)] = glossy[j];
+            ctrl[idx(k, 1, 1, j)] = 80.0;
+        }
+    }
+    Material::new("truth", &ctrl).unwrap()
+}
+
+/// The joint refinement only takes steps that lower its cost, the cosine-weighted squared
+/// BRDF error: started from the staged fit (no refinement), its BRDF error is never
+/// higher, here on the analytic BRDF and on the sign-changing DSBRDF, which it must
+/// recover far better than its start.
+#[test]
+fn joint_refinement_lowers_the_brdf_error_of_its_start() {
+    let staged = Options {
+        lobes: Lobes::Fixed(2),
+        joint: false,
+        ..Options::default()
+    };
+    let truth = sign_changing();
+    let brdfs: [(&dyn Isotropic, &str); 2] = [(&Analytic, "analytic"), (&truth, "sign-changing")];
+    for (brdf, name) in brdfs {
+        let table = Tabulated::new(brdf, Grid::default());
+        let start = fit(brdf, name, &staged).unwrap().best().material.clone();
+        let refined = joint::refine(&table.plane(), &start, 2, joint::REFINE_STEPS).unwrap();
+        let (before, after) = (table.error(&start), table.error(&refined));
+        eprintln!("{name}: BRDF error {before:.5} staged, {after:.5} refined");
+        assert!(
+            after <= before * (1.0 + 1e-9),
+            "{name}: {before} -> {after}"
+        );
+        if name == "sign-changing" {
+            assert!(
+                after < 0.2 * before && after < 0.01,
+                "{name}: {before} -> {after}"
+            );
+        }
+    }
+}
+
+/// The default fit (staged, refined, judged under suns and broad lights) renders the
+/// sign-changing DSBRDF closer than the staged fit alone, in the judge's own measure.
+#[test]
+fn default_fit_recovers_sign_changing_scales() {
+    let truth = sign_changing();
+    let staged = fit(
+        &truth,
+        "t",
+        &Options {
+            lobes: Lobes::Fixed(2),
+            joint: false,
+            ..Options::default()
+        },
+    )
+    .unwrap();
+    let full = fit(
+        &truth,
+        "t",
+        &Options {
+            lobes: Lobes::Fixed(2),
+            ..Options::default()
+        },
+    )
+    .unwrap();
+    let judge = matedit::fit::judge::Judge::broad(&truth).unwrap();
+    let (a, b) = (
+        judge.error(&staged.best().material),
+        judge.error(&full.best().material),
+    );
+    eprintln!("image error: staged {a:.2e}, default {b:.2e}");
+    assert!(b < 0.5 * a, "staged {a}, default {b}");
+    assert!(full.best().error < 0.01, "BRDF error {}", full.best().error);
 }

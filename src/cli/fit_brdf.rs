@@ -19,8 +19,9 @@ Examples:
 
 Fits the 108 control points to the BRDF over (theta_h, theta_d); phi_d, which the
 DSBRDF cannot represent, is averaged with the weights cos theta_i cos theta_o. With
---lobes auto (the default) 1, 2 and 3 lobes are fitted and the fewest whose BRDF error
-is within --tolerance of the 3-lobe fit's is kept; unused lobes have m0 = 0.
+--lobes auto (the default) 1, 2 and 3 lobes are fitted and the fewest whose image error
+(under the fitter's built-in lights) is within --tolerance of the best's is kept; unused
+lobes have m0 = 0.
 --bundle writes every fit into one file, the format of the shipped presets.";
 
 /// The options of `matedit fit-brdf`.
@@ -49,8 +50,8 @@ pub struct Args {
     /// Lobes to fit: 1, 2, 3 or auto.
     #[arg(long, value_name = "N", default_value = "auto", value_parser = parse_lobes)]
     lobes: Lobes,
-    /// With --lobes auto: the relative slack over the 3-lobe BRDF error allowed to fewer lobes.
-    #[arg(long, value_name = "REL", default_value_t = 0.05, value_parser = parse_tolerance_slack)]
+    /// With --lobes auto: the relative slack over the best image error allowed to fewer lobes.
+    #[arg(long, value_name = "REL", default_value_t = 0.0, value_parser = parse_tolerance_slack)]
     tolerance: f64,
 }
 

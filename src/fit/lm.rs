@@ -41,6 +41,9 @@ pub struct Problem<'a> {
     /// must not go below 0 where the BRDF is seen, even where the cosines give that place
     /// little weight (a negative BRDF is no material).
     sqrt_negative: f64,
+    /// Scales as free control points (any sign per point, bounded by +-exp(scale_max))
+    /// rather than exp(p) with one sign per lobe; exponents stay exp(p).
+    free_scales: bool,
 }
 
 impl<'a> Problem<'a> {
@@ -69,7 +72,30 @@ impl<'a> Problem<'a> {
             c,
             scale_max,
             signs: Vec::new(),
+            free_scales: false,
         }
+    }
+
+    /// The same problem with free scales: a lobe's scale control points are parameters
+    /// themselves, each of either sign (the signs of [`Problem::with_signs`] are then
+    /// unused), within +-(1 + 4 max target) in exp(m0) - 1.
+    pub fn with_free_scales(mut self) -> Self {
+        self.free_scales = true;
+        self
+    }
+
+    /// The control points of the parameters `p`: exp(p), except free scales.
+    fn values(&self, p: &[f64]) -> Vec<f64> {
+        p.iter()
+            .enumerate()
+            .map(|(i, &v)| {
+                if self.free_scales && i % PER_LOBE < N_CTRL_POINTS {
+                    v
+                } else {
+                    v.exp()
+                }
+            })
+            .collect()
     }
 
     /// The same problem with lobe s's scales of sign `signs[s]`.
@@ -79,15 +105,19 @@ impl<'a> Problem<'a> {
     }
 
     /// The model's value and, if `jac` is given, its derivatives with respect to the
-    /// log-parameters, at sample i.
-    /// `ctrl` holds exp(p): the control points themselves.
+    /// parameters, at sample i.
+    /// `ctrl` holds the control points themselves ([`Problem::values`]).
     fn model(&self, i: usize, ctrl: &[f64], mut jac: Option<&mut [f64]>) -> f64 {
         let b = &self.plane.basis[i];
         let (x, ln_x) = (self.plane.x[i], self.plane.ln_x[i]);
         let mut f = 0.0;
         for (s, lobe) in ctrl.chunks_exact(PER_LOBE).enumerate() {
             let (c0, c1) = lobe.split_at(N_CTRL_POINTS);
-            let sign = self.signs.get(s).copied().unwrap_or(1.0);
+            let sign = if self.free_scales {
+                1.0
+            } else {
+                self.signs.get(s).copied().unwrap_or(1.0)
+            };
             let (mut m0, mut m1) = (0.0, 0.0);
             for j in 0..N_CTRL_POINTS {
                 m0 += b[j] * sign * c0[j];
@@ -100,8 +130,10 @@ impl<'a> Problem<'a> {
                 let d0 = e * xp;
                 let d1 = e * m0 * xp * ln_x;
                 let row = &mut jac[s * PER_LOBE..(s + 1) * PER_LOBE];
+                // d/dp of a free scale is 1, of a log-parameter exp(p) = the point itself
+                let dp0 = |j: usize| if self.free_scales { 1.0 } else { c0[j] };
                 for j in 0..N_CTRL_POINTS {
-                    row[j] = d0 * b[j] * sign * c0[j];
+                    row[j] = d0 * b[j] * sign * dp0(j);
                     row[N_CTRL_POINTS + j] = d1 * b[j] * c1[j];
                 }
             }
@@ -111,7 +143,7 @@ impl<'a> Problem<'a> {
 
     /// The cost: sum of squared residuals (1 for the zero model... up to the loss).
     pub fn cost(&self, p: &[f64]) -> f64 {
-        let ctrl: Vec<f64> = p.iter().map(|v| v.exp()).collect();
+        let ctrl = self.values(p);
         (0..self.g_target.len())
             .map(|i| {
                 let f = self.model(i, &ctrl, None);
@@ -137,7 +169,7 @@ impl<'a> Problem<'a> {
         for _ in 0..iterations {
             a.fill(0.0);
             grad.fill(0.0);
-            let ctrl: Vec<f64> = p.iter().map(|v| v.exp()).collect();
+            let ctrl = self.values(p);
             for i in 0..self.g_target.len() {
                 let f = self.model(i, &ctrl, Some(&mut jac));
                 let dg = self.sqrt_w[i] * g_prime(f, self.c);
@@ -200,10 +232,13 @@ impl Problem<'_> {
     /// The bounds of each parameter of a vector of length n.
     fn bounds(&self, n: usize) -> impl Iterator<Item = (f64, f64)> + '_ {
         (0..n).map(|i| {
-            if i % PER_LOBE < N_CTRL_POINTS {
-                (SCALE_BOUNDS.0, self.scale_max)
-            } else {
+            if i % PER_LOBE >= N_CTRL_POINTS {
                 EXPONENT_BOUNDS
+            } else if self.free_scales {
+                let cap = self.scale_max.exp();
+                (-cap, cap)
+            } else {
+                (SCALE_BOUNDS.0, self.scale_max)
             }
         })
     }

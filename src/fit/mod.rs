@@ -1,9 +1,10 @@
 //! Fitting the DSBRDF to an isotropic BRDF (a MERL table, an NBRDF network, an analytic
 //! model): the 108 control points are fitted jointly against the BRDF over
 //! (theta_h, theta_d), each channel's lobes by Levenberg-Marquardt ([`lm`]) on the
-//! samples of [`samples`].
+//! samples of [`samples`], the judge's pick then refined by [`joint`] least squares.
 
 pub mod job;
+pub mod joint;
 pub mod judge;
 pub mod lm;
 pub mod samples;
@@ -32,7 +33,8 @@ pub enum Lobes {
 pub struct Options {
     /// Lobe count.
     pub lobes: Lobes,
-    /// Relative slack over the best error allowed to a fit with fewer lobes.
+    /// Relative slack over the best error allowed to a fit with fewer lobes (0: the best
+    /// is kept; the presets were made with 0.05 and no joint refinement).
     pub tolerance: f64,
     /// The loss's scale c: residuals are taken on c ln(1 + f / c), linear below c and
     /// logarithmic above (infinite: linear).
@@ -42,16 +44,22 @@ pub struct Options {
     /// Judge candidates and lobe counts by images under built-in lights ([`judge`]);
     /// without, the BRDF error decides.
     pub judge: bool,
+    /// Refine the judge's pick by [`joint`] least squares (free-sign scales, linear loss;
+    /// the plane's weights, and every theta_d alike) and let the judge, with its broad
+    /// lights too, keep the best of the three; without the judge, the first candidate
+    /// refined with the plane's weights is kept.
+    pub joint: bool,
 }
 
 impl Default for Options {
     fn default() -> Self {
         Options {
             lobes: Lobes::Auto,
-            tolerance: 0.05,
+            tolerance: 0.0,
             loss_scale: 1.0,
             grid: Grid::default(),
             judge: true,
+            joint: true,
         }
     }
 }
@@ -101,8 +109,11 @@ const FINAL_STEPS: usize = 120;
 ///
 /// The lobes' shapes are found on the channels' mean, nested: the best 1-lobe fit over
 /// [`START_EXPONENTS`], then each next lobe added to the previous best with each start
-/// exponent. Each channel is then refined from the mean's fit. Deterministic: one thread,
-/// fixed order.
+/// exponent. Each channel is then refined from the mean's fit; candidates refined with
+/// other losses, and (with [`Options::joint`]) the judge's pick refined by [`joint`] least
+/// squares, are judged by their images ([`judge`]). Deterministic: fixed order, and the
+/// judge's renders are bitwise equal for any thread count (the fast CPU path's SIMD
+/// instruction set, chosen at run time, may round differently on another machine).
 pub fn fit(brdf: &dyn Isotropic, name: &str, options: &Options) -> Result<Fitted> {
     let counts: Vec<usize> = match options.lobes {
         Lobes::Fixed(n) if (1..=N_LOBES).contains(&n) => vec![n],
@@ -205,13 +216,22 @@ pub fn fit(brdf: &dyn Isotropic, name: &str, options: &Options) -> Result<Fitted
     // weighs large values more (c = 10, and linear); the judge keeps the one whose
     // images are closest to the measured BRDF's.
     let judge = if options.judge {
-        Some(Judge::new(brdf)?)
+        Some(if options.joint {
+            Judge::broad(brdf)?
+        } else {
+            Judge::new(brdf)?
+        })
     } else {
         None
     };
     let targets: Vec<Vec<f64>> = (0..N_CHANNELS)
         .map(|k| plane.target.iter().map(|t| t[k]).collect())
         .collect();
+    let joint_planes = if options.joint {
+        vec![plane.clone(), plane.rows_alike()]
+    } else {
+        Vec::new()
+    };
     let mut fits = Vec::with_capacity(counts.len());
     for &lobes in &counts {
         let signs = &shapes[lobes - 1].1;
@@ -237,7 +257,7 @@ pub fn fit(brdf: &dyn Isotropic, name: &str, options: &Options) -> Result<Fitted
                 )?);
             }
         }
-        let (material, image_error) = match &judge {
+        let pick = |candidates: Vec<Material>| match &judge {
             Some(j) => candidates
                 .into_iter()
                 .map(|m| {
@@ -246,8 +266,24 @@ pub fn fit(brdf: &dyn Isotropic, name: &str, options: &Options) -> Result<Fitted
                 })
                 .min_by(|a, b| a.1.total_cmp(&b.1))
                 .expect("one candidate at least"),
-            None => (candidates.remove(0), f64::NAN),
+            None => (
+                candidates.into_iter().next().expect("one candidate"),
+                f64::NAN,
+            ),
         };
+        let (mut material, mut image_error) = pick(candidates);
+        if options.joint {
+            // The kept candidate refined jointly, weighted as the BRDF is seen and with
+            // every theta_d alike; the judge keeps the refinement only if it is better.
+            let mut refined = Vec::with_capacity(joint_planes.len() + 1);
+            for p in &joint_planes {
+                refined.push(joint::refine(p, &material, lobes, joint::REFINE_STEPS)?);
+            }
+            if judge.is_some() {
+                refined.push(material);
+            }
+            (material, image_error) = pick(refined);
+        }
         let error = table.error(&material);
         fits.push(Fit {
             lobes,
@@ -279,32 +315,57 @@ pub fn fit(brdf: &dyn Isotropic, name: &str, options: &Options) -> Result<Fitted
 fn material_of(name: &str, channels: &[&Vec<f64>], signs: &[f64]) -> Result<Material> {
     let mut ctrl = [0.0; N_PARAMS];
     for (k, p) in channels.iter().enumerate() {
-        write_channel(&mut ctrl, k, p, signs);
+        write_channel(&mut ctrl, k, log_lobes(p, signs));
     }
     Material::new(name, &ctrl)
 }
 
-/// Writes one channel's log-parameters as control points, lobes sorted by their mean
-/// exponent (broadest first); a lobe whose exponents all sit at the lower bound becomes
-/// constant (m1 = 0), which the renderers treat as such.
-fn write_channel(ctrl: &mut [f64; N_PARAMS], k: usize, p: &[f64], signs: &[f64]) {
-    let mut lobes: Vec<(&[f64], f64)> = p
-        .chunks_exact(lm::PER_LOBE)
+/// One lobe's control points: scales m0 and exponents m1.
+#[derive(Clone, Copy, Debug)]
+struct Lobe {
+    m0: [f64; N_CTRL_POINTS],
+    m1: [f64; N_CTRL_POINTS],
+}
+
+/// The lobes of one channel's log-parameters, lobe s's scales of sign `signs[s]`.
+fn log_lobes(p: &[f64], signs: &[f64]) -> Vec<Lobe> {
+    p.chunks_exact(lm::PER_LOBE)
         .zip(signs.iter().copied())
-        .collect();
-    let mean_exponent = |l: &[f64]| l[N_CTRL_POINTS..].iter().sum::<f64>();
-    lobes.sort_by(|a, b| mean_exponent(a.0).total_cmp(&mean_exponent(b.0)));
-    for (s, &(lobe, sign)) in lobes.iter().enumerate() {
-        let flat = lobe[N_CTRL_POINTS..]
-            .iter()
-            .all(|&q| q <= lm::EXPONENT_BOUNDS.0 + 1e-9);
-        for j in 0..N_CTRL_POINTS {
-            ctrl[idx(k, s, 0, j)] = sign * lobe[j].exp().min(MAX_ABS_SCALE);
-            ctrl[idx(k, s, 1, j)] = if flat {
+        .map(|(lobe, sign)| lobe_of(lobe, |v| sign * v.exp().min(MAX_ABS_SCALE)))
+        .collect()
+}
+
+/// One lobe of a channel's parameters (scales then log-exponents), each scale parameter
+/// made a control point by `scale`; a lobe whose exponents all sit at the lower bound
+/// becomes constant (m1 = 0), which the renderers treat as such.
+fn lobe_of(params: &[f64], scale: impl Fn(f64) -> f64) -> Lobe {
+    let (scales, exponents) = params.split_at(N_CTRL_POINTS);
+    let flat = exponents.iter().all(|&q| q <= lm::EXPONENT_BOUNDS.0 + 1e-9);
+    Lobe {
+        m0: std::array::from_fn(|j| scale(scales[j])),
+        m1: std::array::from_fn(|j| {
+            if flat {
                 0.0
             } else {
-                lobe[N_CTRL_POINTS + j].exp().min(MAX_EXPONENT)
-            };
+                exponents[j].exp().min(MAX_EXPONENT)
+            }
+        }),
+    }
+}
+
+/// Writes one channel's lobes as control points, sorted by their mean log-exponent
+/// (broadest first).
+fn write_channel(ctrl: &mut [f64; N_PARAMS], k: usize, mut lobes: Vec<Lobe>) {
+    let mean_exponent = |l: &Lobe| {
+        l.m1.iter()
+            .map(|&e| e.max(lm::EXPONENT_BOUNDS.0.exp()).ln())
+            .sum::<f64>()
+    };
+    lobes.sort_by(|a, b| mean_exponent(a).total_cmp(&mean_exponent(b)));
+    for (s, lobe) in lobes.iter().enumerate() {
+        for j in 0..N_CTRL_POINTS {
+            ctrl[idx(k, s, 0, j)] = lobe.m0[j];
+            ctrl[idx(k, s, 1, j)] = lobe.m1[j];
         }
     }
 }

@@ -50,6 +50,30 @@ pub struct Plane {
     pub target: Vec<[f64; 3]>,
     /// The sample's total weight.
     pub weight: Vec<f64>,
+    /// The sample's theta_d cell (0 to [`Grid::theta_d`] - 1).
+    pub row: Vec<usize>,
+}
+
+impl Plane {
+    /// The same samples with each theta_d row's weights divided by the row's weighted
+    /// energy sum w t^2 (t: the channels' mean), so that every row counts alike: an image
+    /// under a small bright light sees one theta_d, and its PSNR is relative to that
+    /// light's highlight, whatever the BRDF does at other theta_d (grazing rows, where
+    /// many BRDFs are largest, would otherwise drown the rest).
+    pub fn rows_alike(&self) -> Plane {
+        let rows = self.row.iter().max().map_or(0, |r| r + 1);
+        let mut energy = vec![0.0; rows];
+        for ((w, t), &r) in self.weight.iter().zip(&self.target).zip(&self.row) {
+            let grey = (t[0] + t[1] + t[2]) / 3.0;
+            energy[r] += w * grey * grey;
+        }
+        let floor = energy.iter().fold(0.0f64, |m, &e| m.max(e)) * 1e-12 + 1e-300;
+        let mut p = self.clone();
+        for (w, &r) in p.weight.iter_mut().zip(&self.row) {
+            *w /= energy[r].max(floor);
+        }
+        p
+    }
 }
 
 /// The BRDF on the full grid, as flat per-sample records; `weight` 0 marks pairs that
@@ -116,6 +140,7 @@ impl Tabulated {
             basis: Vec::new(),
             target: Vec::new(),
             weight: Vec::new(),
+            row: Vec::new(),
         };
         for (c, &(theta_h, theta_d)) in self.angles.iter().enumerate() {
             let w = &self.weights[c * np..(c + 1) * np];
@@ -136,6 +161,7 @@ impl Tabulated {
             p.basis.push(spline_basis(theta_d));
             p.target.push(t.map(|tk| tk / total));
             p.weight.push(total);
+            p.row.push(c % self.grid.theta_d);
         }
         p
     }
