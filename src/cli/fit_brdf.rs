@@ -53,6 +53,10 @@ pub struct Args {
     /// With --lobes auto: the relative slack over the best image error allowed to fewer lobes.
     #[arg(long, value_name = "REL", default_value_t = 0.0, value_parser = parse_tolerance_slack)]
     tolerance: f64,
+    /// Leave out the joint least-squares refinement of the judge's pick (the fitter the
+    /// shipped presets were made with, with --tolerance 0.05).
+    #[arg(long)]
+    no_joint: bool,
 }
 
 fn parse_lobes(v: &str) -> Result<Lobes, String> {
@@ -94,6 +98,7 @@ pub fn run(args: &Args) -> Result<(), Failure> {
     let options = Options {
         lobes: args.lobes,
         tolerance: args.tolerance,
+        joint: !args.no_joint,
         ..Default::default()
     };
     let bar = progress_bar(
