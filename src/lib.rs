@@ -59,6 +59,7 @@ pub mod gpu;
 pub mod io;
 pub mod lod;
 pub mod material;
+pub mod nets;
 pub mod normals;
 pub mod prepare;
 pub mod presets;
