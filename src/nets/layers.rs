@@ -2,6 +2,7 @@
 //! `NormalsNet`, `GlobalNet`), each built from its tensors in a [`Weights`].
 
 use candle_core::{D, Result, Tensor};
+use rayon::prelude::*;
 
 use super::weights::{NetsConfig, Weights};
 use crate::error::Result as MResult;
@@ -39,15 +40,8 @@ impl Conv {
         let cols = if k == 1 {
             x.reshape((b * cin, h * w))?
         } else {
-            let padded = x.pad_with_zeros(2, p, p)?.pad_with_zeros(3, p, p)?;
-            let mut shifted = Vec::with_capacity(k * k);
-            for ky in 0..k {
-                for kx in 0..k {
-                    shifted.push(padded.narrow(2, ky, h)?.narrow(3, kx, w)?);
-                }
-            }
-            // (b, cin, k k, H, W): row c k k + ky k + kx, the kernel's flat order
-            Tensor::stack(&shifted, 2)?.reshape((b * cin * k * k, h * w))?
+            let cols = im2col(&x.flatten_all()?.to_vec1::<f32>()?, b * cin, h, w, k, p);
+            Tensor::from_vec(cols, (b * cin * k * k, h * w), x.device())?
         };
         let cout = self.weight.dim(0)?;
         self.weight
@@ -55,6 +49,33 @@ impl Conv {
             .reshape((b, cout, h, w))?
             .broadcast_add(&self.bias)
     }
+}
+
+/// The k x k neighbourhoods of `c` channels of H x W (zero outside, `p` pixels of padding)
+/// as rows (c k k, H W): row (ci k + ky) k + kx is channel ci shifted by (ky - p, kx - p),
+/// the flat order of a convolution's kernel.
+fn im2col(x: &[f32], c: usize, h: usize, w: usize, k: usize, p: usize) -> Vec<f32> {
+    let mut cols = vec![0f32; c * k * k * h * w];
+    cols.par_chunks_mut(k * k * h * w)
+        .zip(x.par_chunks(h * w))
+        .for_each(|(out, plane)| {
+            for (r, row) in out.chunks_mut(h * w).enumerate() {
+                let (ky, kx) = (r / k, r % k);
+                // output column x reads input column x + kx - p where that is inside
+                let lo = p.saturating_sub(kx);
+                let hi = (w + p).saturating_sub(kx).min(w);
+                for y in 0..h {
+                    let Some(sy) = (y + ky).checked_sub(p).filter(|&sy| sy < h) else {
+                        continue;
+                    };
+                    let src = &plane[sy * w..(sy + 1) * w];
+                    if lo < hi {
+                        row[y * w + lo..y * w + hi].copy_from_slice(&src[lo + kx - p..hi + kx - p]);
+                    }
+                }
+            }
+        });
+    cols
 }
 
 /// `nn.ConvTranspose2d(cin, cout, 2, stride=2)` on one image: each input pixel becomes a
