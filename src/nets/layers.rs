@@ -112,37 +112,52 @@ impl Up {
     }
 }
 
-/// `nn.GroupNorm(groups, c)` with affine weight and bias.
+/// `nn.GroupNorm(groups, c)` with affine weight and bias, followed by the ReLU that always
+/// follows it in model.py, in two passes over the data (statistics, then output).
 struct GroupNorm {
-    weight: Tensor,
-    bias: Tensor,
+    weight: Vec<f32>,
+    bias: Vec<f32>,
     groups: usize,
 }
 
 impl GroupNorm {
     fn new(w: &mut Weights, name: &str, groups: usize, c: usize) -> MResult<Self> {
         Ok(GroupNorm {
-            weight: w
-                .take(&format!("{name}.weight"), &[c])?
-                .reshape((1, c, 1, 1))?,
-            bias: w
-                .take(&format!("{name}.bias"), &[c])?
-                .reshape((1, c, 1, 1))?,
+            weight: w.take(&format!("{name}.weight"), &[c])?.to_vec1()?,
+            bias: w.take(&format!("{name}.bias"), &[c])?.to_vec1()?,
             groups,
         })
     }
 
-    /// (x - mean) / sqrt(var + eps) per group (biased variance), then weight and bias.
-    fn forward(&self, x: &Tensor) -> Result<Tensor> {
+    /// relu((x - mean) / sqrt(var + eps) weight + bias), mean and (biased) variance per
+    /// image and group.
+    fn forward_relu(&self, x: &Tensor) -> Result<Tensor> {
         let (b, c, h, wd) = x.dims4()?;
-        let g = x.reshape((b, self.groups, (c / self.groups) * h * wd))?;
-        let centred = g.broadcast_sub(&g.mean_keepdim(2)?)?;
-        let var = centred.sqr()?.mean_keepdim(2)?;
-        centred
-            .broadcast_div(&(var + GN_EPS)?.sqrt()?)?
-            .reshape((b, c, h, wd))?
-            .broadcast_mul(&self.weight)?
-            .broadcast_add(&self.bias)
+        let per_channel = h * wd;
+        let per_group = c / self.groups * per_channel;
+        let mut v = x.flatten_all()?.to_vec1::<f32>()?;
+        v.par_chunks_mut(per_group)
+            .enumerate()
+            .for_each(|(g, group)| {
+                let n = group.len() as f64;
+                let mean = group.iter().map(|&v| f64::from(v)).sum::<f64>() / n;
+                let var = group
+                    .iter()
+                    .map(|&v| (f64::from(v) - mean).powi(2))
+                    .sum::<f64>()
+                    / n;
+                let inv = 1.0 / (var + GN_EPS).sqrt();
+                for (j, channel) in group.chunks_mut(per_channel).enumerate() {
+                    let ch = (g % self.groups) * (c / self.groups) + j;
+                    let scale = inv * f64::from(self.weight[ch]);
+                    let shift = f64::from(self.bias[ch]) - mean * scale;
+                    let (scale, shift) = (scale as f32, shift as f32);
+                    for v in channel {
+                        *v = (*v * scale + shift).max(0.0);
+                    }
+                }
+            });
+        Tensor::from_vec(v, (b, c, h, wd), x.device())
     }
 }
 
@@ -172,8 +187,8 @@ impl Block {
     }
 
     fn forward(&self, x: &Tensor) -> Result<Tensor> {
-        let x = self.norm1.forward(&self.conv1.forward(x)?)?.relu()?;
-        self.norm2.forward(&self.conv2.forward(&x)?)?.relu()
+        let x = self.norm1.forward_relu(&self.conv1.forward(x)?)?;
+        self.norm2.forward_relu(&self.conv2.forward(&x)?)
     }
 }
 
