@@ -152,12 +152,14 @@ fn predictions_match_pytorch() {
     }
 }
 
-/// The weights file rewritten with `edit` applied to its tensors (name -> (dtype, shape,
-/// bytes)), metadata kept.
+type Tensors = Vec<(String, safetensors::Dtype, Vec<usize>, Vec<u8>)>;
+
+/// The weights file rewritten with `edit` applied to its tensors (name, dtype, shape,
+/// bytes) and its metadata.
 fn rewritten(
     dir: &Path,
     name: &str,
-    edit: impl FnOnce(&mut Vec<(String, safetensors::Dtype, Vec<usize>, Vec<u8>)>),
+    edit: impl FnOnce(&mut Tensors, &mut HashMap<String, String>),
 ) -> PathBuf {
     let bytes = std::fs::read(data("weights.safetensors")).unwrap();
     let (_, meta) = SafeTensors::read_metadata(&bytes).unwrap();
@@ -167,7 +169,8 @@ fn rewritten(
         .into_iter()
         .map(|(n, v)| (n, v.dtype(), v.shape().to_vec(), v.data().to_vec()))
         .collect();
-    edit(&mut tensors);
+    let mut meta = meta.metadata().clone().unwrap_or_default();
+    edit(&mut tensors, &mut meta);
     let views: Vec<_> = tensors
         .iter()
         .map(|(n, d, s, b)| {
@@ -178,7 +181,7 @@ fn rewritten(
         })
         .collect();
     let path = dir.join(name);
-    safetensors::serialize_to_file(views, meta.metadata().clone(), &path).unwrap();
+    safetensors::serialize_to_file(views, Some(meta), &path).unwrap();
     path
 }
 
@@ -200,7 +203,7 @@ fn load_error(path: &Path) -> String {
 #[test]
 fn bad_weight_files_are_named() {
     let dir = tempfile::tempdir().unwrap();
-    let missing = rewritten(dir.path(), "missing.safetensors", |t| {
+    let missing = rewritten(dir.path(), "missing.safetensors", |t, _| {
         t.retain(|(n, ..)| n != "normals.head.weight")
     });
     let msg = load_error(&missing);
@@ -209,7 +212,7 @@ fn bad_weight_files_are_named() {
         "{msg}"
     );
 
-    let shape = rewritten(dir.path(), "shape.safetensors", |t| {
+    let shape = rewritten(dir.path(), "shape.safetensors", |t, _| {
         let e = t
             .iter_mut()
             .find(|(n, ..)| n == "light.net.head.2.bias")
@@ -223,7 +226,7 @@ fn bad_weight_files_are_named() {
         "{msg}"
     );
 
-    let extra = rewritten(dir.path(), "extra.safetensors", |t| {
+    let extra = rewritten(dir.path(), "extra.safetensors", |t, _| {
         t.push((
             "normals.extra".into(),
             safetensors::Dtype::F32,
@@ -234,6 +237,43 @@ fn bad_weight_files_are_named() {
     let msg = load_error(&extra);
     assert!(
         msg.contains("tensor normals.extra is not part of the nets"),
+        "{msg}"
+    );
+
+    let config = rewritten(dir.path(), "config.safetensors", |_, m| {
+        m.insert("config".into(), r#"{"width": -8, "levels": 2}"#.into());
+    });
+    let msg = load_error(&config);
+    assert!(
+        msg.contains("metadata config: invalid value: integer `-8`"),
+        "{msg}"
+    );
+
+    let huge = rewritten(dir.path(), "huge.safetensors", |_, m| {
+        m.insert(
+            "config".into(),
+            r#"{"width": 8, "levels": 2, "env_height": 1e20}"#.into(),
+        );
+    });
+    let msg = load_error(&huge);
+    assert!(msg.contains("metadata config:"), "{msg}");
+
+    let wide = rewritten(dir.path(), "wide.safetensors", |_, m| {
+        let big = usize::MAX / 2;
+        m.insert(
+            "config".into(),
+            format!(r#"{{"width": {big}, "levels": 2}}"#),
+        );
+    });
+    let msg = load_error(&wide);
+    assert!(msg.contains("is too large"), "{msg}");
+
+    let format = rewritten(dir.path(), "format.safetensors", |_, m| {
+        m.insert("format".into(), "matedit-nets 2".into());
+    });
+    let msg = load_error(&format);
+    assert!(
+        msg.contains(r#"metadata format Some("matedit-nets 2")"#),
         "{msg}"
     );
 

@@ -124,16 +124,10 @@ impl Nets {
         if image.pixels.len() != w * h {
             return Err(invalid!("image: {} pixels for {w}x{h}", image.pixels.len()));
         }
-        if let Some(i) = image
-            .pixels
-            .iter()
-            .position(|p| p.iter().any(|v| !v.is_finite()))
-        {
+        if let Some((x, y)) = image.non_finite_pixel() {
             return Err(invalid!(
-                "image: pixel ({}, {}) is {:?}",
-                i % w,
-                i / w,
-                image.pixels[i]
+                "image: pixel ({x}, {y}) is {:?}",
+                image.pixels[y * w + x]
             ));
         }
         if let Some(m) = mask

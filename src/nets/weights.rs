@@ -71,7 +71,14 @@ impl Weights {
         if cfg.width == 0 || cfg.levels == 0 || cfg.env_height == 0 || cfg.env_width == 0 {
             return Err(bad(format!("metadata config: {config} has a zero size")));
         }
-        if cfg.levels > 16 || cfg.width.checked_shl(cfg.levels as u32 + 2).is_none() {
+        let too_large = cfg.levels > 16
+            || cfg.width.checked_mul(1 << (cfg.levels + 2)).is_none()
+            || cfg
+                .env_height
+                .checked_mul(cfg.env_width)
+                .and_then(|n| n.checked_mul(3))
+                .is_none();
+        if too_large {
             return Err(bad(format!("metadata config: {config} is too large")));
         }
         let st = SafeTensors::deserialize(&bytes)
