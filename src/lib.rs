@@ -29,6 +29,8 @@
 //!
 //! - [`shapes`]: meshes and procedural shapes rasterised to normal maps (on the scene
 //!   types);
+//! - [`nets`]: the networks of `matedit.nets` (normals and mask, material, light) run on
+//!   the CPU with candle from their safetensors weights (on the scene types);
 //! - what uses the renderer: [`edit`] (a material fitted to an image), [`synth`]
 //!   (datasets), [`fit`] (the DSBRDF fitted to measured [`brdf`]s), [`io`] (files in and
 //!   out), [`supersample`] (the continuous light);
@@ -59,6 +61,7 @@ pub mod gpu;
 pub mod io;
 pub mod lod;
 pub mod material;
+pub mod nets;
 pub mod normals;
 pub mod prepare;
 pub mod presets;

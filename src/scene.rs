@@ -113,15 +113,9 @@ impl Batch {
                     g.pixels.len()
                 ));
             }
-            if let Some(i) = g
-                .pixels
-                .iter()
-                .position(|p| p.iter().any(|v| !v.is_finite()))
-            {
+            if let Some((x, y)) = g.non_finite_pixel() {
                 return Err(invalid!(
-                    "upstream: image {b} pixel ({}, {}) is not finite",
-                    i % w,
-                    i / w
+                    "upstream: image {b} pixel ({x}, {y}) is not finite"
                 ));
             }
         }
@@ -148,6 +142,15 @@ impl Image {
             height,
             pixels: vec![[0.0; 3]; width * height],
         }
+    }
+
+    /// The first pixel (column, row) with a NaN or infinite channel.
+    pub fn non_finite_pixel(&self) -> Option<(usize, usize)> {
+        let i = self
+            .pixels
+            .iter()
+            .position(|p| p.iter().any(|v| !v.is_finite()))?;
+        Some((i % self.width.max(1), i / self.width.max(1)))
     }
 
     /// The largest channel value.

@@ -40,16 +40,8 @@ impl Inputs {
                 normals.height
             ));
         }
-        if let Some(i) = target
-            .pixels
-            .iter()
-            .position(|p| p.iter().any(|v| !v.is_finite()))
-        {
-            return Err(invalid!(
-                "image: pixel (column {}, row {}) is not finite",
-                i % target.width,
-                i / target.width
-            ));
+        if let Some((x, y)) = target.non_finite_pixel() {
+            return Err(invalid!("image: pixel (column {x}, row {y}) is not finite"));
         }
         let n = normals.normals.len();
         let given = mask.unwrap_or_else(|| vec![true; n]);

@@ -1,0 +1,250 @@
+//! The three networks of python/matedit/nets/model.py (normals and mask, material, light)
+//! run on the CPU with candle, from the weights file `matedit.nets.save` writes: the
+//! binary predicts without Python.
+//!
+//! ```no_run
+//! use matedit::{Image, nets::Nets};
+//! let nets = Nets::load("weights.safetensors".as_ref())?;
+//! let image = Image::zeros(64, 64); // linear RGB
+//! let p = nets.predict(&image, None)?;
+//! let (normals, mask, env, material) = (p.normals, p.mask, p.env, p.material);
+//! # Ok::<(), matedit::Error>(())
+//! ```
+//!
+//! The conventions are model.py's (`Nets.predict`): an image is divided by its mean over
+//! the object, s = mean(max(I, 0)) over the mask (s = 1 for a black object), and the nets
+//! see slog(I / s) = sign(x) log(1 + |x|). Without a mask, the mask is where the normals
+//! net's logit is > 0 on the image normalised by its whole mean; the nets then run on the
+//! image normalised over that mask. The light is returned in the image's units (times s).
+
+mod layers;
+mod weights;
+
+use std::path::Path;
+
+use candle_core::{D, DType, Device, Tensor};
+
+use crate::envmap::{Convention, EnvMap};
+use crate::error::{Error, Result, invalid};
+use crate::material::{Material, N_COEFS, N_PARAMS};
+use crate::normals::NormalMap;
+use crate::scene::Image;
+use crate::spline::N_CTRL_POINTS;
+use layers::{GlobalNet, NormalsNet};
+use weights::Weights;
+pub use weights::{FORMAT, NetsConfig};
+
+/// The fitted MERL materials the material net mixes (model.py's `N_MERL`).
+pub const N_MERL: usize = 90;
+
+/// Largest exponent of a predicted material: model.py clamps a mix to [0, 1e4].
+const MAX_MIX_EXPONENT: f32 = 1e4;
+
+/// The three nets, ready to predict.
+pub struct Nets {
+    cfg: NetsConfig,
+    normals: NormalsNet,
+    material: GlobalNet,
+    /// The 90 MERL presets' control points (90, 108), a buffer of the weights file.
+    presets: Tensor,
+    light: GlobalNet,
+}
+
+/// What the nets see in one image.
+#[derive(Clone, Debug)]
+pub struct Prediction {
+    /// Unit normals in the camera frame, zero off the mask.
+    pub normals: NormalMap,
+    /// The object's pixels: the given mask, or the predicted one.
+    pub mask: Vec<bool>,
+    /// The normals net's foreground probability per pixel (sigmoid of its logit): of the
+    /// pass that decided the mask without a given mask (mask = prob > 0.5), of the pass on
+    /// the masked input with one.
+    pub mask_prob: Vec<f32>,
+    /// The light, equirect, the config's size, in the image's units.
+    pub env: EnvMap,
+    /// The material: a mix of the MERL presets' 108 control points.
+    pub material: Material,
+    /// The image's scale s: the mean of max(I, 0) over the mask (1 for a black object).
+    pub scale: f32,
+}
+
+/// A candle error inside the nets (sizes are checked before, so this is not expected).
+impl From<candle_core::Error> for Error {
+    fn from(e: candle_core::Error) -> Self {
+        invalid!("nets: {e}")
+    }
+}
+
+impl Nets {
+    /// The nets of a weights file written by `matedit.nets.save`. A file that is not
+    /// safetensors, not matedit nets, or misses a tensor or has one of the wrong shape for
+    /// its config is an [`Error::File`] naming the file and the tensor.
+    pub fn load(path: &Path) -> Result<Nets> {
+        let (cfg, mut w) = Weights::read(path)?;
+        let normals = NormalsNet::new(&mut w, &cfg)?;
+        let material = GlobalNet::new(&mut w, "material.net", &cfg, N_MERL)?;
+        let presets = w.take("material.presets", &[N_MERL, N_PARAMS])?;
+        let light = GlobalNet::new(
+            &mut w,
+            "light.net",
+            &cfg,
+            cfg.env_height * cfg.env_width * 3,
+        )?;
+        // the mean light of training: not part of a prediction, but part of the file
+        w.take("log_light_sum", &[cfg.env_height, cfg.env_width, 3])?;
+        w.take("light_count", &[])?;
+        w.finish()?;
+        Ok(Nets {
+            cfg,
+            normals,
+            material,
+            presets,
+            light,
+        })
+    }
+
+    /// The sizes the nets were built with.
+    pub fn config(&self) -> NetsConfig {
+        self.cfg
+    }
+
+    /// Normals, mask, light and material of `image` (linear RGB, width and height
+    /// multiples of 2^(levels - 1)); `mask` (one per pixel, row-major) or `None` to
+    /// predict it.
+    pub fn predict(&self, image: &Image, mask: Option<&[bool]>) -> Result<Prediction> {
+        let (w, h) = (image.width, image.height);
+        let k = 1usize << (self.cfg.levels - 1);
+        if w == 0 || h == 0 || w % k != 0 || h % k != 0 {
+            return Err(invalid!(
+                "image: size {w}x{h} is not a non-zero multiple of {k} ({} levels)",
+                self.cfg.levels
+            ));
+        }
+        if image.pixels.len() != w * h {
+            return Err(invalid!("image: {} pixels for {w}x{h}", image.pixels.len()));
+        }
+        if let Some((x, y)) = image.non_finite_pixel() {
+            return Err(invalid!(
+                "image: pixel ({x}, {y}) is {:?}",
+                image.pixels[y * w + x]
+            ));
+        }
+        if let Some(m) = mask
+            && m.len() != w * h
+        {
+            return Err(invalid!(
+                "mask: {} values, expected {} ({w}x{h})",
+                m.len(),
+                w * h
+            ));
+        }
+        let img = Tensor::from_slice(image.pixels.as_flattened(), (1, h, w, 3), &Device::Cpu)?;
+        let (mask, first_prob) = match mask {
+            Some(m) => (m.to_vec(), None),
+            None => {
+                let all = vec![true; w * h];
+                let (_, logits) = self.normals.forward(&prepare(image, &img, &all)?.0)?;
+                let logits = logits.flatten_all()?.to_vec1::<f32>()?;
+                let m = logits.iter().map(|&l| l > 0.0).collect();
+                (m, Some(logits.iter().map(|&l| sigmoid(l)).collect()))
+            }
+        };
+        let (x, s) = prepare(image, &img, &mask)?;
+        let m = Tensor::from_iter(mask.iter().map(|&b| f32::from(u8::from(b))), &Device::Cpu)?
+            .reshape((1, 1, h, w))?;
+        let (n, logits) = self.normals.forward(&x)?;
+        let mask_prob = match first_prob {
+            Some(p) => p,
+            None => logits
+                .flatten_all()?
+                .to_vec1::<f32>()?
+                .into_iter()
+                .map(sigmoid)
+                .collect(),
+        };
+
+        let n = n.flatten_to(2)?.to_vec2::<f32>()?;
+        let normals = n
+            .iter()
+            .zip(&mask)
+            .map(|(v, &on)| if on { [v[0], v[1], v[2]] } else { [0.0; 3] })
+            .collect();
+        let normals = NormalMap::new(w, h, normals)?;
+
+        // MaterialNet: softmax(logits) @ presets, exponents clamped to [0, 1e4]
+        let weights = candle_softmax(&self.material.forward(&x, &m)?)?;
+        let ctrl = weights
+            .matmul(&self.presets)?
+            .flatten_all()?
+            .to_vec1::<f32>()?;
+        let ctrl: Vec<f64> = ctrl
+            .iter()
+            .enumerate()
+            .map(|(i, &v)| {
+                let is_exponent = (i / N_CTRL_POINTS) % N_COEFS == 1;
+                f64::from(if is_exponent {
+                    v.clamp(0.0, MAX_MIX_EXPONENT)
+                } else {
+                    v
+                })
+            })
+            .collect();
+        let material = Material::new("predicted", &ctrl)?;
+
+        // LightNet: exp of its output clamped to [-20, 20], times s
+        let log_env = self
+            .light
+            .forward(&x, &m)?
+            .flatten_all()?
+            .to_vec1::<f32>()?;
+        let texels = log_env
+            .chunks_exact(3)
+            .map(|c| [c[0], c[1], c[2]].map(|v| v.clamp(-20.0, 20.0).exp() * s))
+            .collect();
+        let env = EnvMap::new(
+            self.cfg.env_height,
+            self.cfg.env_width,
+            Convention::Equirect,
+            texels,
+        )?;
+        Ok(Prediction {
+            normals,
+            mask,
+            mask_prob,
+            env,
+            material,
+            scale: s,
+        })
+    }
+}
+
+fn sigmoid(x: f32) -> f32 {
+    1.0 / (1.0 + (-x).exp())
+}
+
+/// softmax over the last dimension.
+fn candle_softmax(x: &Tensor) -> candle_core::Result<Tensor> {
+    let e = x.broadcast_sub(&x.max_keepdim(D::Minus1)?)?.exp()?;
+    e.broadcast_div(&e.sum_keepdim(D::Minus1)?)
+}
+
+/// model.py's `prepare`: slog(I / s) as (1, 3, H, W), and s = the mean of max(I, 0) over
+/// `mask` (1 where that is 0). `img` is `image` as a (1, H, W, 3) tensor.
+fn prepare(image: &Image, img: &Tensor, mask: &[bool]) -> Result<(Tensor, f32)> {
+    let (mut sum, mut count) = (0f64, 0usize);
+    for (p, _) in image.pixels.iter().zip(mask).filter(|(_, on)| **on) {
+        sum += p.iter().map(|&v| f64::from(v.max(0.0))).sum::<f64>();
+        count += 1;
+    }
+    let s = (sum / (3 * count.max(1)) as f64) as f32;
+    let s = if s > 0.0 { s } else { 1.0 };
+    let x = (img / f64::from(s))?;
+    let slog = (x.sign()? * x.abs()?.affine(1.0, 1.0)?.log()?)?;
+    Ok((
+        slog.permute((0, 3, 1, 2))?
+            .contiguous()?
+            .to_dtype(DType::F32)?,
+        s,
+    ))
+}

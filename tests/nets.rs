@@ -1,0 +1,308 @@
+//! `matedit::nets` against PyTorch: tests/data/nets/ holds a small `Nets(NetsConfig(width=8,
+//! levels=2, env_height=8, env_width=16))` saved by `matedit.nets.save` and PyTorch's
+//! predictions on five images (16 x 16, 12 x 20, 8 x 10; with and without a mask; a black
+//! object) (python/examples/nets/parity_data.py writes both). The Rust
+//! predictions must match within 1e-4; bad weight files must give one-line errors naming
+//! the file and the tensor.
+
+mod common;
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use common::assert_close;
+use matedit::Image;
+use matedit::nets::{Nets, NetsConfig};
+use safetensors::SafeTensors;
+
+fn data(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data/nets")
+        .join(name)
+}
+
+/// Every tensor of a safetensors file as f64 values with its shape.
+fn read_all(path: &Path) -> HashMap<String, (Vec<usize>, Vec<f64>)> {
+    let bytes = std::fs::read(path).expect("reads the test data");
+    let st = SafeTensors::deserialize(&bytes).expect("safetensors");
+    st.tensors()
+        .into_iter()
+        .map(|(name, v)| {
+            let d = v.data();
+            let values: Vec<f64> = match v.dtype() {
+                safetensors::Dtype::F32 => d
+                    .chunks_exact(4)
+                    .map(|b| f64::from(f32::from_le_bytes(b.try_into().unwrap())))
+                    .collect(),
+                safetensors::Dtype::F64 => d
+                    .chunks_exact(8)
+                    .map(|b| f64::from_le_bytes(b.try_into().unwrap()))
+                    .collect(),
+                safetensors::Dtype::U8 => d.iter().map(|&b| f64::from(b)).collect(),
+                t => panic!("{name}: dtype {t:?}"),
+            };
+            (name, (v.shape().to_vec(), values))
+        })
+        .collect()
+}
+
+/// RGB or xyz values as one f64 slice.
+fn widen(v: &[[f32; 3]]) -> Vec<f64> {
+    v.as_flattened().iter().map(|&x| f64::from(x)).collect()
+}
+
+/// The largest difference, relative to |b| (at least 1) with `relative`.
+fn max_diff(a: &[f64], b: &[f64], relative: bool) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs() / if relative { y.abs().max(1.0) } else { 1.0 })
+        .fold(0.0, f64::max)
+}
+
+/// Tolerance of every comparison with PyTorch: both run float32, in a different order of
+/// summation (convolutions, group norm means); 1e-4 absolute, and 1e-4 relative for the
+/// light, whose texels are exp of the net's output times the image's scale.
+const TOL: f64 = 1e-4;
+
+#[test]
+fn predictions_match_pytorch() {
+    let nets = Nets::load(&data("weights.safetensors")).expect("loads the weights");
+    assert_eq!(
+        nets.config(),
+        NetsConfig {
+            width: 8,
+            levels: 2,
+            env_height: 8,
+            env_width: 16
+        }
+    );
+    let all = read_all(&data("parity.safetensors"));
+    for case in ["masked", "unmasked", "square", "wide_masked", "black"] {
+        let get = |k: &str| &all[&format!("{case}.{k}")];
+        let (shape, pixels) = get("image");
+        let (h, w) = (shape[0], shape[1]);
+        let image = Image {
+            width: w,
+            height: h,
+            pixels: pixels
+                .chunks_exact(3)
+                .map(|c| [c[0] as f32, c[1] as f32, c[2] as f32])
+                .collect(),
+        };
+        let mask_in: Option<Vec<bool>> = all
+            .get(&format!("{case}.mask_in"))
+            .map(|(_, m)| m.iter().map(|&v| v != 0.0).collect());
+        let p = nets.predict(&image, mask_in.as_deref()).expect("predicts");
+
+        let mask: Vec<bool> = get("mask").1.iter().map(|&v| v != 0.0).collect();
+        let flips = p.mask.iter().zip(&mask).filter(|(a, b)| a != b).count();
+        assert_eq!(
+            flips, 0,
+            "{case}: {flips} mask pixels differ from PyTorch's"
+        );
+        let prob: Vec<f64> = p.mask_prob.iter().map(|&v| f64::from(v)).collect();
+        let normals = widen(&p.normals.normals);
+        let env = widen(&p.env.texels);
+        // the figures docs/nets.md quotes (`cargo test --release --test nets -- --nocapture`)
+        println!(
+            "{case}: max |diff| mask_prob {:.1e}, normals {:.1e}, env {:.1e}, ctrl {:.1e} (relative)",
+            max_diff(&prob, &get("mask_prob").1, false),
+            max_diff(&normals, &get("normals").1, false),
+            max_diff(&env, &get("env").1, true),
+            max_diff(&p.material.ctrl, &get("ctrl").1, true),
+        );
+        assert_close(
+            &format!("{case} mask_prob"),
+            &prob,
+            &get("mask_prob").1,
+            TOL,
+            0.0,
+        );
+        assert_close(
+            &format!("{case} normals"),
+            &normals,
+            &get("normals").1,
+            TOL,
+            0.0,
+        );
+        assert_eq!(
+            (p.env.height, p.env.width),
+            (get("env").0[0], get("env").0[1])
+        );
+        assert_close(&format!("{case} env"), &env, &get("env").1, TOL, TOL);
+        assert_close(
+            &format!("{case} ctrl"),
+            &p.material.ctrl,
+            &get("ctrl").1,
+            TOL,
+            TOL,
+        );
+        // the test means something: every case has an object and a background
+        assert!(
+            mask.iter().any(|&m| m) && mask.iter().any(|&m| !m),
+            "{case}"
+        );
+        assert!(
+            p.normals.normals[0] == [0.0; 3],
+            "{case}: a corner is background"
+        );
+        if case == "black" {
+            assert_eq!(p.scale, 1.0, "a black object keeps its image");
+        }
+    }
+}
+
+type Tensors = Vec<(String, safetensors::Dtype, Vec<usize>, Vec<u8>)>;
+
+/// The weights file rewritten with `edit` applied to its tensors (name, dtype, shape,
+/// bytes) and its metadata.
+fn rewritten(
+    dir: &Path,
+    name: &str,
+    edit: impl FnOnce(&mut Tensors, &mut HashMap<String, String>),
+) -> PathBuf {
+    let bytes = std::fs::read(data("weights.safetensors")).unwrap();
+    let (_, meta) = SafeTensors::read_metadata(&bytes).unwrap();
+    let st = SafeTensors::deserialize(&bytes).unwrap();
+    let mut tensors: Vec<_> = st
+        .tensors()
+        .into_iter()
+        .map(|(n, v)| (n, v.dtype(), v.shape().to_vec(), v.data().to_vec()))
+        .collect();
+    let mut meta = meta.metadata().clone().unwrap_or_default();
+    edit(&mut tensors, &mut meta);
+    let views: Vec<_> = tensors
+        .iter()
+        .map(|(n, d, s, b)| {
+            (
+                n.clone(),
+                safetensors::tensor::TensorView::new(*d, s.clone(), b).unwrap(),
+            )
+        })
+        .collect();
+    let path = dir.join(name);
+    safetensors::serialize_to_file(views, Some(meta), &path).unwrap();
+    path
+}
+
+fn load_error(path: &Path) -> String {
+    match Nets::load(path) {
+        Ok(_) => panic!("{} loaded", path.display()),
+        Err(e) => {
+            let msg = e.to_string();
+            assert!(!msg.contains('\n'), "one line: {msg}");
+            assert!(
+                msg.contains(&path.display().to_string()),
+                "names the file: {msg}"
+            );
+            msg
+        }
+    }
+}
+
+#[test]
+fn bad_weight_files_are_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let missing = rewritten(dir.path(), "missing.safetensors", |t, _| {
+        t.retain(|(n, ..)| n != "normals.head.weight")
+    });
+    let msg = load_error(&missing);
+    assert!(
+        msg.contains("tensor normals.head.weight is missing"),
+        "{msg}"
+    );
+
+    let shape = rewritten(dir.path(), "shape.safetensors", |t, _| {
+        let e = t
+            .iter_mut()
+            .find(|(n, ..)| n == "light.net.head.2.bias")
+            .unwrap();
+        e.2 = vec![e.2[0] / 2];
+        e.3.truncate(e.3.len() / 2);
+    });
+    let msg = load_error(&shape);
+    assert!(
+        msg.contains("tensor light.net.head.2.bias: shape [192], expected [384]"),
+        "{msg}"
+    );
+
+    let extra = rewritten(dir.path(), "extra.safetensors", |t, _| {
+        t.push((
+            "normals.extra".into(),
+            safetensors::Dtype::F32,
+            vec![1],
+            vec![0; 4],
+        ))
+    });
+    let msg = load_error(&extra);
+    assert!(
+        msg.contains("tensor normals.extra is not part of the nets"),
+        "{msg}"
+    );
+
+    let config = rewritten(dir.path(), "config.safetensors", |_, m| {
+        m.insert("config".into(), r#"{"width": -8, "levels": 2}"#.into());
+    });
+    let msg = load_error(&config);
+    assert!(
+        msg.contains("metadata config: invalid value: integer `-8`"),
+        "{msg}"
+    );
+
+    let huge = rewritten(dir.path(), "huge.safetensors", |_, m| {
+        m.insert(
+            "config".into(),
+            r#"{"width": 8, "levels": 2, "env_height": 1e20}"#.into(),
+        );
+    });
+    let msg = load_error(&huge);
+    assert!(msg.contains("metadata config:"), "{msg}");
+
+    let wide = rewritten(dir.path(), "wide.safetensors", |_, m| {
+        let big = usize::MAX / 2;
+        m.insert(
+            "config".into(),
+            format!(r#"{{"width": {big}, "levels": 2}}"#),
+        );
+    });
+    let msg = load_error(&wide);
+    assert!(msg.contains("is too large"), "{msg}");
+
+    let format = rewritten(dir.path(), "format.safetensors", |_, m| {
+        m.insert("format".into(), "matedit-nets 2".into());
+    });
+    let msg = load_error(&format);
+    assert!(
+        msg.contains(r#"metadata format Some("matedit-nets 2")"#),
+        "{msg}"
+    );
+
+    let text = dir.path().join("text.safetensors");
+    std::fs::write(&text, "not weights at all").unwrap();
+    let msg = load_error(&text);
+    assert!(msg.contains("not a safetensors file"), "{msg}");
+
+    let none = dir.path().join("absent.safetensors");
+    load_error(&none);
+
+    // a safetensors file of other tensors: its metadata has no matedit format
+    let msg = load_error(&data("parity.safetensors"));
+    assert!(msg.contains("not matedit nets weights"), "{msg}");
+}
+
+#[test]
+fn bad_inputs_are_refused() {
+    let nets = Nets::load(&data("weights.safetensors")).unwrap();
+    let odd = Image::zeros(9, 8);
+    let e = nets.predict(&odd, None).unwrap_err().to_string();
+    assert!(e.contains("image: size 9x8"), "{e}");
+    let mut nan = Image::zeros(8, 8);
+    nan.pixels[10][1] = f32::NAN;
+    let e = nets.predict(&nan, None).unwrap_err().to_string();
+    assert!(e.contains("image: pixel (2, 1)"), "{e}");
+    let e = nets
+        .predict(&Image::zeros(8, 8), Some(&[true; 10]))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("mask: 10 values, expected 64"), "{e}");
+}
