@@ -24,6 +24,7 @@ use sha2::Sha256;
 use super::files::{files_of, hash_file};
 use super::sources::{serde_message, weight_of};
 use crate::camera::Camera;
+use crate::envgen::colour::luminance;
 use crate::envmap::{Convention, EnvMap};
 use crate::error::{Error, Result};
 use crate::splitmix::SplitMix;
@@ -259,7 +260,7 @@ fn mean_luminance(env: &EnvMap) -> f64 {
         for c in 0..env.width {
             let (_, d_omega) = env.convention.texel(r, c, env.height, env.width);
             let t = env.texels[r * env.width + c];
-            sum += d_omega * (0.2126 * t[0] as f64 + 0.7152 * t[1] as f64 + 0.0722 * t[2] as f64);
+            sum += d_omega * luminance(t.map(f64::from));
             total += d_omega;
         }
     }
@@ -357,11 +358,8 @@ impl Background {
                         px.push(photo.sample(x0 + u * cw, y0 + v * ch));
                     }
                 }
-                let mean: f64 = px
-                    .iter()
-                    .map(|p| 0.2126 * p[0] as f64 + 0.7152 * p[1] as f64 + 0.0722 * p[2] as f64)
-                    .sum::<f64>()
-                    / px.len() as f64;
+                let mean: f64 =
+                    px.iter().map(|p| luminance(p.map(f64::from))).sum::<f64>() / px.len() as f64;
                 let scale = if mean > 0.0 {
                     mean_luminance(env) * stops.exp2() / mean
                 } else {

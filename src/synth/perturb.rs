@@ -22,6 +22,7 @@ use serde::Deserialize;
 use serde_json::{Value, json};
 
 use crate::brdf::Isotropic;
+use crate::envgen::colour::luminance;
 use crate::error::{Result, invalid};
 use crate::material::{MAX_ABS_SCALE, MAX_EXPONENT, Material, N_CHANNELS, N_LOBES, N_PARAMS, idx};
 use crate::spline::N_CTRL_POINTS;
@@ -29,9 +30,6 @@ use crate::splitmix::SplitMix;
 
 /// The directional albedo at normal incidence a brightened material may reach.
 pub const ALBEDO_CAP: f64 = 0.95;
-
-/// Luminance weights of linear sRGB (Rec. 709).
-const LUMA: [f64; 3] = [0.2126, 0.7152, 0.0722];
 
 /// The ranges perturbations are drawn from.
 #[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
@@ -107,7 +105,7 @@ impl Perturb {
         let brightness = log_uniform(rng, self.brightness);
         let roughness = log_uniform(rng, self.roughness);
         let raw = [0, 1, 2].map(|_| (self.colour * normal(rng)).exp());
-        let l: f64 = raw.iter().zip(LUMA).map(|(g, w)| g * w).sum();
+        let l = luminance(raw);
         Drawn {
             brightness,
             gains: raw.map(|g| g / l),
@@ -363,7 +361,7 @@ mod tests {
             assert_eq!(x, y);
             assert!((0.7..=1.4).contains(&x.brightness));
             assert!((0.6..=1.6).contains(&x.roughness));
-            let l: f64 = x.gains.iter().zip(LUMA).map(|(g, w)| g * w).sum();
+            let l = luminance(x.gains);
             assert!((l - 1.0).abs() < 1e-12);
         }
         assert!(Perturb { colour: 2.0, ..p }.validate().is_err());
