@@ -345,3 +345,23 @@ fn prepared_scenes_with_different_texel_counts() {
         }
     }
 }
+
+/// Renderers share the process's device: one opened for the first renderer, none for
+/// renderers made later, one after another or from several threads at once.
+#[test]
+fn renderers_share_one_device() {
+    let Some(_first) = common::gpu("renderers_share_one_device") else {
+        return;
+    };
+    let opened = matedit::gpu::GpuContext::devices_opened();
+    let threads: Vec<_> = (0..4)
+        .map(|_| std::thread::spawn(|| matedit::gpu::GpuRenderer::new().map(drop)))
+        .collect();
+    for t in threads {
+        t.join().expect("no panic").expect("a renderer");
+    }
+    for _ in 0..3 {
+        drop(matedit::gpu::GpuRenderer::new().expect("a renderer"));
+    }
+    assert_eq!(matedit::gpu::GpuContext::devices_opened(), opened);
+}

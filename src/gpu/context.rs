@@ -1,9 +1,12 @@
 //! The adapter and device: headless, a hardware GPU first, honouring WGPU_BACKEND and
 //! WGPU_ADAPTER_NAME.
 
+use std::sync::Mutex;
+
 use crate::error::{Error, Result};
 
-/// An open device and what was chosen.
+/// An open device and what was chosen. Clones share the device and its queue.
+#[derive(Clone)]
 pub struct GpuContext {
     /// The device.
     pub device: wgpu::Device,
@@ -20,6 +23,8 @@ pub struct GpuContext {
     /// compiled pipelines are kept across processes ([`super::cache`]).
     pub pipeline_cache: bool,
 }
+
+static DEVICES_OPENED: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
 
 fn rank(t: wgpu::DeviceType) -> u32 {
     match t {
@@ -45,7 +50,37 @@ impl GpuContext {
         Self::open(true)
     }
 
+    /// The device this process opened for the same request (hardware only or not, and
+    /// the same `WGPU_BACKEND` and `WGPU_ADAPTER_NAME`), or a new one, kept for the
+    /// process's next renderers. One device a process: on an NVIDIA H200 (Vulkan, driver
+    /// 580), a device per renderer made `gpu_vs_reference` find no adapter after 17
+    /// renderers opened one after another in one process, and hang or crash with 8 tests
+    /// opening them at once.
     fn open(hardware_only: bool) -> Result<Self> {
+        static OPEN: Mutex<Vec<(Key, GpuContext)>> = Mutex::new(Vec::new());
+        type Key = (bool, Option<String>, Option<String>);
+        let key: Key = (
+            hardware_only,
+            std::env::var("WGPU_BACKEND").ok(),
+            std::env::var("WGPU_ADAPTER_NAME").ok(),
+        );
+        // held while opening, so that threads asking at once open one device between them
+        let mut open = OPEN.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((_, ctx)) = open.iter().find(|(k, _)| *k == key) {
+            return Ok(ctx.clone());
+        }
+        let ctx = Self::open_new(hardware_only)?;
+        open.push((key, ctx.clone()));
+        DEVICES_OPENED.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        Ok(ctx)
+    }
+
+    /// How many devices this process has opened: renderers share one (see `open`).
+    pub fn devices_opened() -> usize {
+        DEVICES_OPENED.load(std::sync::atomic::Ordering::Relaxed)
+    }
+
+    fn open_new(hardware_only: bool) -> Result<Self> {
         let desc = wgpu::InstanceDescriptor::new_without_display_handle().with_env();
         let backends = desc.backends;
         let instance = wgpu::Instance::new(desc);
