@@ -73,7 +73,8 @@ fn predictions_match_pytorch() {
             width: 8,
             levels: 2,
             env_height: 8,
-            env_width: 16
+            env_width: 16,
+            basis: 90
         }
     );
     let all = read_all(&data("parity.safetensors"));

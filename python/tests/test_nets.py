@@ -220,6 +220,20 @@ def test_predict_and_weights_round_trip(tmp_path):
     assert abs(float(lin.permute(0, 2, 3, 1)[0][torch.from_numpy(mask)].mean()) - 1) < 1e-5
 
 
+def test_a_basis_of_some_presets(tmp_path):
+    names = matedit.presets()[:90]
+    nets = Nets(NetsConfig(width=4, levels=2, env_height=8, env_width=16, basis=[names[5], names[0]]))
+    assert nets.material.presets.shape == (2, 108)
+    assert np.array_equal(nets.material.presets[0].numpy(), matedit.preset(names[5]).astype(np.float32))
+    save(nets, tmp_path / "w.safetensors")
+    assert load(tmp_path / "w.safetensors").cfg.basis == [names[5], names[0]]
+    ctrl = nets.predict(np.ones((16, 16, 3), np.float32))["ctrl"]
+    lo, hi = np.minimum(*nets.material.presets.numpy()), np.maximum(*nets.material.presets.numpy())
+    assert ((ctrl >= lo - 1e-4) & (ctrl <= hi + 1e-4)).all()  # a mix of the two
+    with pytest.raises(ValueError, match="'gold' is not a fitted MERL preset"):
+        Nets(NetsConfig(basis=["gold"]))
+
+
 def test_srgb_to_linear():
     lin = srgb_to_linear(np.array([[[0, 128, 255]]], np.uint8))
     assert lin[0, 0, 0] == 0 and abs(lin[0, 0, 2] - 1) < 1e-6

@@ -45,7 +45,7 @@ pub struct Nets {
     cfg: NetsConfig,
     normals: NormalsNet,
     material: GlobalNet,
-    /// The 90 MERL presets' control points (90, 108), a buffer of the weights file.
+    /// The basis presets' control points (K, 108), a buffer of the weights file.
     presets: Tensor,
     light: GlobalNet,
 }
@@ -83,8 +83,8 @@ impl Nets {
     pub fn load(path: &Path) -> Result<Nets> {
         let (cfg, mut w) = Weights::read(path)?;
         let normals = NormalsNet::new(&mut w, &cfg)?;
-        let material = GlobalNet::new(&mut w, "material.net", &cfg, N_MERL)?;
-        let presets = w.take("material.presets", &[N_MERL, N_PARAMS])?;
+        let material = GlobalNet::new(&mut w, "material.net", &cfg, cfg.basis)?;
+        let presets = w.take("material.presets", &[cfg.basis, N_PARAMS])?;
         let light = GlobalNet::new(
             &mut w,
             "light.net",

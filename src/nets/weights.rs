@@ -25,6 +25,20 @@ pub struct NetsConfig {
     pub env_height: usize,
     /// Columns of the light net's map.
     pub env_width: usize,
+    /// How many fitted MERL presets the material net mixes (the metadata names them in
+    /// `basis`; none named: all 90).
+    #[serde(rename = "basis", deserialize_with = "basis_size")]
+    pub basis: usize,
+}
+
+/// The number of presets a metadata `basis` names, 90 (all) for none.
+fn basis_size<'de, D: serde::Deserializer<'de>>(d: D) -> std::result::Result<usize, D::Error> {
+    let names: Vec<String> = Deserialize::deserialize(d)?;
+    Ok(if names.is_empty() {
+        super::N_MERL
+    } else {
+        names.len()
+    })
 }
 
 impl Default for NetsConfig {
@@ -34,6 +48,7 @@ impl Default for NetsConfig {
             levels: 3,
             env_height: 16,
             env_width: 32,
+            basis: super::N_MERL,
         }
     }
 }

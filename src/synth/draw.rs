@@ -108,7 +108,7 @@ impl Spec {
         let item = &self.materials[mi].source;
         let (material, mut mparams) = match &item.source {
             MaterialSource::Fixed(m, p) => (Material::clone(m), p.clone()),
-            MaterialSource::RandomMerl { mix } => random_merl(&mut rng, *mix)?,
+            MaterialSource::RandomMerl { mix, from } => random_merl(&mut rng, *mix, from)?,
         };
         let material = match &item.perturb {
             None => material,
@@ -218,12 +218,12 @@ fn pick<T>(rng: &mut SplitMix, items: &[Weighted<T>]) -> usize {
     items.len() - 1
 }
 
-/// `mix` distinct fitted MERL presets with weights uniform on the simplex (the gaps
-/// between sorted uniforms: arithmetic only, the same bits on every machine), mixed
-/// control point by control point.
-fn random_merl(rng: &mut SplitMix, mix: usize) -> Result<(Material, Value)> {
+/// `mix` distinct fitted MERL presets of `from` (indices into `presets::merl()`) with
+/// weights uniform on the simplex (the gaps between sorted uniforms: arithmetic only, the
+/// same bits on every machine), mixed control point by control point.
+fn random_merl(rng: &mut SplitMix, mix: usize, from: &[usize]) -> Result<(Material, Value)> {
     let merl = crate::presets::merl();
-    let mut order: Vec<usize> = (0..merl.len()).collect();
+    let mut order: Vec<usize> = from.to_vec();
     for i in 0..mix {
         let j = i + rng.below(order.len() - i);
         order.swap(i, j);
@@ -289,9 +289,10 @@ mod tests {
     fn merl_mixes_are_valid() {
         // many draws: mixing presets whose exponents reach 1e4 once rounded past it
         let mut rng = SplitMix(3);
+        let all: Vec<usize> = (0..crate::presets::merl().len()).collect();
         for draw in 0..3000 {
             let mix = [1, 2, 3, 8, 16][draw % 5];
-            let (m, p) = random_merl(&mut rng, mix).unwrap();
+            let (m, p) = random_merl(&mut rng, mix, &all).unwrap();
             m.validate().unwrap();
             let parts = p["mix"].as_array().unwrap();
             assert_eq!(parts.len(), mix);
@@ -303,7 +304,25 @@ mod tests {
             let mut rng = SplitMix::for_sample(seed, k);
             let _ = (rng.uniform(), rng.next_u64(), rng.next_u64());
             let _ = (rng.uniform(), rng.next_u64());
-            random_merl(&mut rng, 3).unwrap().0.validate().unwrap();
+            random_merl(&mut rng, 3, &all)
+                .unwrap()
+                .0
+                .validate()
+                .unwrap();
+        }
+    }
+
+    #[test]
+    fn merl_mixes_draw_from_their_subset() {
+        let merl = crate::presets::merl();
+        let from = [4, 17, 60];
+        let mut rng = SplitMix(9);
+        for _ in 0..200 {
+            let (_, p) = random_merl(&mut rng, 2, &from).unwrap();
+            for part in p["mix"].as_array().unwrap() {
+                let name = part["preset"].as_str().unwrap();
+                assert!(from.iter().any(|&i| merl[i].name == name), "{name}");
+            }
         }
     }
 }

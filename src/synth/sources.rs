@@ -53,8 +53,47 @@ struct RawMaterial {
     file: Option<String>,
     random: Option<String>,
     mix: Option<usize>,
+    from: Option<Vec<String>>,
+    except: Option<Vec<String>>,
     perturb: Option<Value>,
     weight: Option<f64>,
+}
+
+/// The fitted MERL presets a `{"random": "merl"}` source draws from: those named in
+/// `from`, or all but those named in `except`, as indices into `presets::merl()`.
+fn merl_subset(
+    from: Option<&[String]>,
+    except: Option<&[String]>,
+) -> std::result::Result<Vec<usize>, String> {
+    let merl = crate::presets::merl();
+    let index = |name: &String| {
+        merl.iter()
+            .position(|p| p.name == name.as_str())
+            .ok_or_else(|| {
+                format!("'{name}' is not a fitted MERL preset (`matedit presets` lists them)")
+            })
+    };
+    let mut picked = match (from, except) {
+        (Some(_), Some(_)) => return Err("give \"from\" or \"except\", not both".into()),
+        (Some(names), None) => names
+            .iter()
+            .map(index)
+            .collect::<std::result::Result<Vec<_>, _>>()?,
+        (None, Some(names)) => {
+            let out = names
+                .iter()
+                .map(index)
+                .collect::<std::result::Result<Vec<_>, _>>()?;
+            (0..merl.len()).filter(|i| !out.contains(i)).collect()
+        }
+        (None, None) => (0..merl.len()).collect(),
+    };
+    picked.sort_unstable();
+    picked.dedup();
+    if picked.is_empty() {
+        return Err("no preset left to draw from".into());
+    }
+    Ok(picked)
 }
 
 /// Where a sample's normals come from.
@@ -106,6 +145,8 @@ pub enum MaterialSource {
     RandomMerl {
         /// How many presets each draw mixes.
         mix: usize,
+        /// The presets drawn from: indices into `presets::merl()`, ascending.
+        from: Vec<usize>,
     },
 }
 
@@ -415,8 +456,10 @@ pub(super) fn materials(
             &["preset", "file", "random"],
         )
         .map_err(at)?;
-        if r.mix.is_some() && kind != 2 {
-            return Err(at("\"mix\" goes with \"random\" only".into()));
+        if (r.mix.is_some() || r.from.is_some() || r.except.is_some()) && kind != 2 {
+            return Err(at(
+                "\"mix\", \"from\" and \"except\" go with \"random\" only".into(),
+            ));
         }
         let perturb = match &r.perturb {
             None | Some(Value::Bool(false)) => None,
@@ -458,15 +501,16 @@ pub(super) fn materials(
                         "random: unknown source '{what}'; the one known is \"merl\" (the fitted MERL presets)"
                     )));
                 }
-                let n = crate::presets::merl().len();
-                let mix = r.mix.unwrap_or(3);
+                let from = merl_subset(r.from.as_deref(), r.except.as_deref()).map_err(at)?;
+                let n = from.len();
+                let mix = r.mix.unwrap_or(3.min(n));
                 if mix == 0 || mix > MAX_MIX.min(n) {
                     return Err(at(format!(
                         "mix: {mix} must be between 1 and {}",
                         MAX_MIX.min(n)
                     )));
                 }
-                MaterialSource::RandomMerl { mix }
+                MaterialSource::RandomMerl { mix, from }
             }
         };
         materials.push(Weighted {
@@ -475,4 +519,39 @@ pub(super) fn materials(
         });
     }
     Ok(materials)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::merl_subset;
+
+    #[test]
+    fn merl_subsets() {
+        let n = crate::presets::merl().len();
+        let names = |ix: &[usize]| -> Vec<String> {
+            ix.iter()
+                .map(|&i| crate::presets::merl()[i].name.to_string())
+                .collect()
+        };
+        assert_eq!(merl_subset(None, None).unwrap(), (0..n).collect::<Vec<_>>());
+        assert_eq!(
+            merl_subset(Some(&names(&[7, 2, 7])), None).unwrap(),
+            vec![2, 7]
+        );
+        let rest = merl_subset(None, Some(&names(&[0, 5]))).unwrap();
+        assert_eq!(rest.len(), n - 2);
+        assert!(!rest.contains(&0) && !rest.contains(&5));
+        let e = merl_subset(Some(&["gold-ish".to_string()]), None).unwrap_err();
+        assert!(e.contains("'gold-ish' is not a fitted MERL preset"), "{e}");
+        assert!(
+            merl_subset(Some(&[]), None)
+                .unwrap_err()
+                .contains("no preset left")
+        );
+        assert!(
+            merl_subset(Some(&[]), Some(&[]))
+                .unwrap_err()
+                .contains("not both")
+        );
+    }
 }

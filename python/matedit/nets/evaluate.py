@@ -10,7 +10,8 @@ metric is over the object's pixels (the true mask), averaged over samples:
 - mask: IoU of the predicted mask (logit > 0) with the true one; baseline: every pixel;
 - material: PSNR (dB) of the material rendered on a sphere under the three probe lights
   (model.spheres) against the true material's, peak = the true renders' maximum;
-  baseline: `mean_material`, the mean of the MERL presets;
+  baseline: `mean_material`, the mean of the presets the material net mixes (its basis,
+  the training materials' presets);
 - light: scale-invariant log RMSE, the RMS over texels and channels of d - mean(d) with
   d = log(L' + 1e-3) - log(L / s + 1e-3); baseline: `mean_light`, the training lights'
   geometric mean recorded in the weights;
@@ -33,7 +34,7 @@ import torch
 
 import matedit.torch
 from matedit.nets.data import collate, samples, spec_digest
-from matedit.nets.model import Nets, check_sizes, load, merl_presets, normalise, prepare, probe_scene, spheres
+from matedit.nets.model import Nets, check_sizes, load, normalise, prepare, probe_scene, spheres
 
 # ---------------------------------------------------------------------------------------
 # baselines
@@ -78,9 +79,9 @@ def balloon(mask, iterations: int = 2000, tol: float = 1e-6) -> np.ndarray:
     return (n * m[..., None]).astype(np.float32)
 
 
-def mean_material() -> torch.Tensor:
-    """The mean of the 90 MERL presets (108,): the centre of the material net's span."""
-    return merl_presets().mean(0)
+def mean_material(nets: Nets) -> torch.Tensor:
+    """The mean of the presets the material net mixes (108,): the centre of its span."""
+    return nets.material.presets.mean(0)
 
 
 def mean_light(nets: Nets) -> torch.Tensor:
@@ -122,7 +123,7 @@ def evaluate(nets: Nets, folder, batch_size: int = 8, limit: int | None = None, 
     docstring): {"samples", "nets": {...}, "baselines": {...}}."""
     nets.eval()
     probe = probe_scene(32, nets.cfg.env_height, nets.cfg.env_width)
-    m_mean, l_mean = mean_material(), mean_light(nets)
+    m_mean, l_mean = mean_material(nets), mean_light(nets)
     acc = {k: [] for k in ("nets", "baselines")}
     angles = {k: [] for k in acc}
     stream = itertools.islice(samples(folder), limit)

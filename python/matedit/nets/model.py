@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, field, fields
 
 import numpy as np
 import torch
@@ -56,11 +56,25 @@ class NetsConfig:
     levels: int = 3  # U-Net / encoder levels
     env_height: int = 16
     env_width: int = 32
+    # the fitted MERL presets the material net mixes, by name; empty: all 90. A run that
+    # holds materials out for testing leaves them out of the basis too.
+    basis: list = field(default_factory=list)
 
 
-def merl_presets() -> torch.Tensor:
-    """The 90 fitted MERL materials' control points, (90, 108) float32."""
-    names = matedit.presets()[:N_MERL]
+def basis_names(cfg: "NetsConfig") -> list[str]:
+    """The presets of cfg.basis (all 90 fitted MERL materials if empty), checked."""
+    merl = matedit.presets()[:N_MERL]
+    names = list(cfg.basis) or merl
+    bad = [n for n in names if n not in merl]
+    if bad:
+        raise ValueError(f"basis: {bad[0]!r} is not a fitted MERL preset (matedit.presets() lists them)")
+    if len(set(names)) != len(names):
+        raise ValueError("basis: a preset is named twice")
+    return names
+
+
+def merl_presets(names: list[str]) -> torch.Tensor:
+    """The named presets' control points, (K, 108) float32."""
     return torch.from_numpy(np.stack([matedit.preset(n) for n in names])).float()
 
 
@@ -223,12 +237,13 @@ class GlobalNet(nn.Module):
 
 
 class MaterialNet(nn.Module):
-    """(B, 3, H, W) and mask (B, H, W) -> ctrl (B, 108) = softmax(logits) @ MERL presets."""
+    """(B, 3, H, W) and mask (B, H, W) -> ctrl (B, 108) = softmax(logits) @ the basis presets."""
 
     def __init__(self, cfg: NetsConfig):
         super().__init__()
-        self.net = GlobalNet(cfg, N_MERL)
-        self.register_buffer("presets", merl_presets())
+        names = basis_names(cfg)
+        self.net = GlobalNet(cfg, len(names))
+        self.register_buffer("presets", merl_presets(names))
         # idx(k, s, t, j) = ((k * 3 + s) * 2 + t) * 6 + j: t = 1 are the exponents
         self.register_buffer("is_exponent", torch.arange(108) // 6 % 2 == 1, persistent=False)
 
@@ -358,7 +373,7 @@ def save(nets: Nets, path, extra: dict | None = None) -> None:
 
     meta = {"format": "matedit-nets 1", "config": json.dumps(asdict(nets.cfg))}
     meta.update({k: json.dumps(v) for k, v in (extra or {}).items()})
-    state = {k: v.detach().contiguous() for k, v in nets.state_dict().items()}
+    state = {k: v.detach().cpu().contiguous() for k, v in nets.state_dict().items()}
     save_file(state, str(path), metadata=meta)
 
 
@@ -378,7 +393,10 @@ def load(path) -> Nets:
         raise ValueError(f"{path}: not matedit nets weights (metadata format {meta.get('format')!r})")
     known = {f.name for f in fields(NetsConfig)}
     cfg = NetsConfig(**{k: v for k, v in json.loads(meta["config"]).items() if k in known})
-    nets = Nets(cfg)
+    try:
+        nets = Nets(cfg)
+    except ValueError as e:
+        raise ValueError(f"{path}: metadata config: {e}") from None
     try:
         nets.load_state_dict(state)
     except RuntimeError as e:

@@ -54,6 +54,7 @@ DEFAULTS = {
     "levels": 3,
     "env_height": 16,
     "env_width": 32,
+    "basis": [],  # the MERL presets the material net mixes (names); empty: all 90
     "steps": 1000,
     "batch_size": 8,  # per process
     "lr": 1e-3,
@@ -70,6 +71,7 @@ DEFAULTS = {
     "threads": 2,  # torch.set_num_threads, and the layer's RAYON_NUM_THREADS unless set
     "workers": 0,  # DataLoader workers
     "shuffle_buffer": 64,
+    "device": "cpu",  # the nets' torch device ("cuda" for a GPU)
     "render_device": "cpu",  # the rendering layer's device ("cpu" is bit-reproducible)
     "log_every": 10,
     "checkpoint_every": 200,
@@ -217,28 +219,36 @@ def train(cfg: dict, out, resume: bool = False, stop_at: int | None = None, quie
     torch.set_num_threads(cfg["threads"])
     # the rendering layer's CPU threads (a rayon pool, made on its first use in the process)
     os.environ.setdefault("RAYON_NUM_THREADS", str(cfg["threads"]))
-    torch.use_deterministic_algorithms(True)
+    dev = torch.device(cfg["device"])
+    if dev.type == "cuda":
+        if not torch.cuda.is_available():
+            raise ValueError(f"device {cfg['device']!r}: this torch sees no CUDA GPU")
+        os.environ.setdefault("CUBLAS_WORKSPACE_CONFIG", ":4096:8")
+    # CUDA has no deterministic backward for some pooling ops: warn there rather than fail
+    torch.use_deterministic_algorithms(True, warn_only=dev.type != "cpu")
     torch.manual_seed(cfg["seed"])
     np.random.seed(cfg["seed"])
     random.seed(cfg["seed"])
 
-    nets = Nets(NetsConfig(**{k: cfg[k] for k in ("width", "levels", "env_height", "env_width")}))
+    nets = Nets(NetsConfig(**{k: cfg[k] for k in ("width", "levels", "env_height", "env_width", "basis")}))
     opt = torch.optim.AdamW(nets.parameters(), lr=cfg["lr"], weight_decay=cfg["weight_decay"])
     step, history, seconds = 0, [], 0.0
     ckpt_path = out / "ckpt.pt"
     if resume:
         if not ckpt_path.is_file():
             raise ValueError(f"{ckpt_path}: no checkpoint to resume from")
-        ck = torch.load(ckpt_path, weights_only=False)
+        ck = torch.load(ckpt_path, weights_only=False, map_location="cpu")
         if ck["config"] != cfg:
             changed = sorted(k for k in cfg if ck["config"].get(k) != cfg[k])
             raise ValueError(f"{ckpt_path}: the config changed since the checkpoint ({', '.join(changed)})")
         nets.load_state_dict(ck["model"])
-        opt.load_state_dict(ck["optimizer"])
         step, history, seconds = ck["step"], ck["history"], ck["seconds"]
         torch.set_rng_state(ck["rng"]["torch"])
         np.random.set_state(ck["rng"]["numpy"])
         random.setstate(ck["rng"]["python"])
+    nets.to(dev)
+    if resume:  # the optimiser's moments follow the parameters to the device
+        opt.load_state_dict(ck["optimizer"])
     model = nets
     if world > 1:
         # the buffers (the presets, the mean-light sums) are equal at the start and kept so by
@@ -250,8 +260,8 @@ def train(cfg: dict, out, resume: bool = False, stop_at: int | None = None, quie
         out.mkdir(parents=True, exist_ok=True)
 
     stream = ChunkStream(cfg["data"], cfg["batch_size"], cfg["seed"], rank, world, cfg["shuffle_buffer"], step)
-    loader = torch.utils.data.DataLoader(stream, batch_size=None, num_workers=cfg["workers"])
-    probe = probe_scene(32, cfg["env_height"], cfg["env_width"])
+    loader = torch.utils.data.DataLoader(stream, batch_size=None, num_workers=cfg["workers"], pin_memory=dev.type == "cuda")
+    probe = tuple(t.to(dev) for t in probe_scene(32, cfg["env_height"], cfg["env_width"]))
     weights = {p: cfg[f"w_{p}"] for p in PARTS}
     end = cfg["steps"] if stop_at is None else min(stop_at, cfg["steps"])
 
@@ -292,7 +302,7 @@ def train(cfg: dict, out, resume: bool = False, stop_at: int | None = None, quie
     t_log, tick = time.time(), time.time()
     batches = iter(loader)
     while step < end:
-        batch = next(batches)
+        batch = {k: v.to(dev, non_blocking=True) for k, v in next(batches).items()}
         check_sizes(nets.cfg, batch["image"], batch["env"], cfg["data"])
         for g in opt.param_groups:
             g["lr"] = lr_at(cfg, step)
@@ -307,7 +317,7 @@ def train(cfg: dict, out, resume: bool = False, stop_at: int | None = None, quie
         with torch.no_grad():  # the mean-light baseline: every rank adds every rank's lights
             _, s = normalise(batch["image"], batch["mask"])
             stats = torch.cat([torch.log(batch["env"] / s[:, None, None, None] + 1e-3).double().sum(0).flatten(),
-                               torch.tensor([float(len(s))], dtype=torch.float64)])
+                               torch.tensor([float(len(s))], dtype=torch.float64, device=dev)])
             if world > 1:
                 dist.all_reduce(stats)
             nets.log_light_sum += stats[:-1].view_as(nets.log_light_sum)
