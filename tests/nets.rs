@@ -77,8 +77,30 @@ fn predictions_match_pytorch() {
             basis: 90
         }
     );
-    let all = read_all(&data("parity.safetensors"));
-    for case in ["masked", "unmasked", "square", "wide_masked", "black"] {
+    check_cases(
+        &nets,
+        &data("parity.safetensors"),
+        &["masked", "unmasked", "square", "wide_masked", "black"],
+    );
+}
+
+/// The built-in nets (data/nets/weights.safetensors) against PyTorch's `matedit.nets.load()`
+/// on five samples of the committed held-out set (python/tests/data/nets_card), four with
+/// their masks (`parity_data.py --shipped`).
+#[test]
+fn builtin_predictions_match_pytorch() {
+    let nets = Nets::builtin().expect("the built-in weights load");
+    check_cases(
+        &nets,
+        &data("shipped_parity.safetensors"),
+        &["sample0", "sample1", "sample2", "sample3", "sample4"],
+    );
+}
+
+/// `nets`' predictions on every case of `file` against PyTorch's, within [`TOL`].
+fn check_cases(nets: &Nets, file: &Path, cases: &[&str]) {
+    let all = read_all(file);
+    for &case in cases {
         let get = |k: &str| &all[&format!("{case}.{k}")];
         let (shape, pixels) = get("image");
         let (h, w) = (shape[0], shape[1]);

@@ -16,6 +16,8 @@ one-line message; a device failure raises RuntimeError.
 `matedit.torch` (imported on its own: `import matedit.torch`) has the PyTorch operator.
 `matedit.synth(spec, out_dir, shard=(i, n))` writes a dataset's shard like `matedit synth`;
 `matedit.ray.synth_ray(spec, out_dir, num_shards)` runs the shards as Ray tasks.
+`matedit.edit(photo, material)` makes the object in a photo of another material, like
+`matedit edit` (docs/edit.md).
 """
 
 from __future__ import annotations
@@ -45,6 +47,8 @@ from ._matedit import (
     synth,
     synth_check,
     synth_verify,
+    builtin_weights,
+    edit_photo,
 )
 
 __all__ = [
@@ -65,6 +69,7 @@ __all__ = [
     "synth",
     "synth_check",
     "synth_verify",
+    "edit",
 ]
 
 _lock = threading.Lock()
@@ -127,3 +132,43 @@ def backward(
         tolerance=tolerance,
         wanted=None if wanted is None else [wanted] if isinstance(wanted, str) else list(wanted),
     )
+
+
+def _photo(name: str, a) -> np.ndarray:
+    """A photo as linear float32 (H, W, 3): 8-bit sRGB (uint8) is linearised."""
+    a = np.asarray(a)
+    if a.dtype == np.uint8:
+        x = a.astype(np.float32) / 255
+        a = np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4).astype(np.float32)
+    if a.dtype != np.float32:
+        raise ValueError(f"{name}: dtype {a.dtype}, expected float32 (linear) or uint8 (sRGB)")
+    if not np.isfinite(a).all():
+        raise ValueError(f"{name}: {int((~np.isfinite(a)).sum())} values are NaN or infinite")
+    return a
+
+
+def edit(photo, material=None, *, like=None, mask=None, like_mask=None, steps=150, weights=None, device="auto") -> dict:
+    """The object in `photo` made of another material, as `matedit edit` does (docs/edit.md).
+
+    photo: (H, W, 3), linear float32 or 8-bit sRGB (uint8). material: a preset name or
+    control points (108,); or like: another photo, whose material is predicted and refined.
+    mask (and like_mask): (H, W) bool, the object; None: the nets find it. steps: refinement
+    steps (0: the predictions alone). weights: a weights file (None: the built-in nets).
+
+    Returns a dict: "edit" (H, W, 3) linear, "mask" and "alpha" (H, W), "normals" at the
+    crop (S, S, 3) and "crop" (x0, y0, S), "env" (the refined light), "material" and
+    "predicted_material" (108,) of the photo's object, "psnr_predicted" and "psnr_refined"
+    (dB, the re-rendered photo against the photo), "losses", "seconds".
+    """
+    photo = _photo("photo", photo)
+    if (material is None) == (like is None):
+        raise ValueError("give material or like, not both and not neither")
+    if like is not None:
+        grey = preset("matte-white")
+        m = edit_photo(_photo("like", like), grey, like_mask, steps, weights, device)["material"]
+    elif isinstance(material, str):
+        m = preset(material)
+    else:
+        m = _ctrl(material)
+    mask = None if mask is None else np.asarray(mask, dtype=bool)
+    return edit_photo(photo, np.ascontiguousarray(m), mask, steps, weights, device)

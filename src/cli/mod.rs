@@ -3,6 +3,7 @@
 //! several commands share (the scene, the device and threads, outputs, progress, the
 //! failure and its exit code) is in [`shared`]; what a command computes is in the library.
 
+mod edit;
 mod env;
 mod fit;
 mod fit_brdf;
@@ -29,6 +30,7 @@ Examples:
   matedit env --kind sun-sky --seed 3 -o sky.exr     (a procedural light)
   matedit normals --shape blobby --seed 7 -o blob.png   (a normal map from a shape or mesh)
   matedit synth spec.json -o dataset/                (a dataset of rendered samples)
+  matedit edit photo.jpg --material gold -o out/     (the object in a photo, made of gold)
 
 Run `matedit help COMMAND` for a command's options and examples.";
 
@@ -65,6 +67,9 @@ enum Command {
     /// Render one fit's shape and light with another fit's material.
     #[command(after_help = transfer::EXAMPLES)]
     Transfer(transfer::Args),
+    /// The object in a photo made of another material: predicted, refined, composited.
+    #[command(after_help = edit::EXAMPLES)]
+    Edit(edit::Args),
     /// Every fit's shape and light with every fit's material, as one picture.
     #[command(after_help = grid::EXAMPLES)]
     Grid(grid::Args),
@@ -90,6 +95,7 @@ impl Cli {
             Command::FitBrdf(args) => fit_brdf::run(args),
             Command::Fit(args) => fit::run(args),
             Command::Transfer(args) => transfer::run(args),
+            Command::Edit(args) => edit::run(args),
             Command::Grid(args) => grid::run(args),
             Command::Synth(args) => synth::run(args),
             Command::Normals(args) => normals::run(args),

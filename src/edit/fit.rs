@@ -77,11 +77,40 @@ pub fn fit(
     let (fixed_env, env_size) = match &options.light {
         Light::Fixed(env) => (Some(env.clone()), (env.height, env.width)),
         Light::Fit { height, width } => (None, (*height, *width)),
+        Light::FitFrom(env) => (None, (env.height, env.width)),
     };
-    let level = match &fixed_env {
-        Some(_) => 0.0,
-        None => {
-            let uniform = EnvMap::constant(env_size.0, env_size.1, options.convention, [1.0; 3])?;
+    let convention = match &options.light {
+        Light::FitFrom(env) => env.convention,
+        _ => options.convention,
+    };
+    // a starting map's log radiance (a texel is at least 1e-6 of the map's mean)
+    let start_logs: Option<Vec<f64>> = match &options.light {
+        Light::FitFrom(env) => {
+            let mean = env
+                .texels
+                .iter()
+                .flatten()
+                .map(|&v| f64::from(v).max(0.0))
+                .sum::<f64>()
+                / (3 * env.texels.len()).max(1) as f64;
+            if !(mean > 0.0 && mean.is_finite()) {
+                return Err(invalid!("light: the starting map is black or not finite"));
+            }
+            Some(
+                env.texels
+                    .iter()
+                    .flatten()
+                    .map(|&v| f64::from(v).max(1e-6 * mean).ln())
+                    .collect(),
+            )
+        }
+        _ => None,
+    };
+    let level = match (&fixed_env, &start_logs) {
+        (Some(_), _) => 0.0,
+        (None, Some(logs)) => logs.iter().sum::<f64>() / logs.len() as f64,
+        (None, None) => {
+            let uniform = EnvMap::constant(env_size.0, env_size.1, convention, [1.0; 3])?;
             let image = render_one(renderer, &work, &options.init, &uniform, options.camera)?;
             let mean = work
                 .mask
@@ -100,8 +129,10 @@ pub fn fit(
             (c / mean).ln()
         }
     };
-    if fixed_env.is_none() {
-        u.extend(std::iter::repeat_n(level, 3 * env_size.0 * env_size.1));
+    match (&fixed_env, &start_logs) {
+        (Some(_), _) => {}
+        (None, Some(logs)) => u.extend(logs),
+        (None, None) => u.extend(std::iter::repeat_n(level, 3 * env_size.0 * env_size.1)),
     }
     let mut lr = vec![options.learning_rate; u.len()];
     let mut adam = adam::Adam::new(u.len());
@@ -121,7 +152,7 @@ pub fn fit(
             None => EnvMap {
                 height: env_size.0,
                 width: env_size.1,
-                convention: options.convention,
+                convention,
                 texels: decode_env(&u[n_mat..]),
             },
         };
@@ -209,7 +240,7 @@ pub fn fit(
         None => EnvMap::new(
             env_size.0,
             env_size.1,
-            options.convention,
+            convention,
             decode_env(&best_u[n_mat..]),
         )?,
     };

@@ -35,6 +35,7 @@ pub mod inputs;
 mod loss;
 pub mod options;
 mod params;
+pub mod photo;
 pub mod plot;
 pub mod transfer;
 

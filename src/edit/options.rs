@@ -21,6 +21,9 @@ pub enum Light {
         /// Columns.
         width: usize,
     },
+    /// The light is fitted too, starting from this map (a prediction, say): its size and
+    /// convention; the level prior holds the mean log radiance near this map's.
+    FitFrom(EnvMap),
 }
 
 impl Light {

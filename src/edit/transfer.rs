@@ -64,17 +64,28 @@ pub fn grid(
     cell: usize,
     preview: &Preview,
 ) -> Result<(usize, usize, Vec<u8>)> {
-    let n = fits.len();
+    grid_of(fits.len(), cell, preview, |i, j| {
+        if i == j {
+            Ok(fits[i].target.clone())
+        } else {
+            transfer(renderer, &fits[i], &fits[j].material)
+        }
+    })
+}
+
+/// An `n` x `n` grid of the images `image(row, column)` as an 8-bit RGB picture, each
+/// resampled to `cell` pixels square, on a dark background.
+pub fn grid_of(
+    n: usize,
+    cell: usize,
+    preview: &Preview,
+    mut image: impl FnMut(usize, usize) -> Result<Image>,
+) -> Result<(usize, usize, Vec<u8>)> {
     let side = n * cell + (n + 1) * GAP;
     let mut rgb = vec![24u8; side * side * 3];
-    for (i, a) in fits.iter().enumerate() {
-        for (j, b) in fits.iter().enumerate() {
-            let image = if i == j {
-                a.target.clone()
-            } else {
-                transfer(renderer, a, &b.material)?
-            };
-            let small = resize(&image, cell, cell);
+    for i in 0..n {
+        for j in 0..n {
+            let small = resize(&image(i, j)?, cell, cell);
             let (ox, oy) = (GAP + j * (cell + GAP), GAP + i * (cell + GAP));
             for y in 0..cell {
                 for x in 0..cell {

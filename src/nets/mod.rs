@@ -37,6 +37,9 @@ pub use weights::{FORMAT, NetsConfig};
 /// The fitted MERL materials the material net mixes (model.py's `N_MERL`).
 pub const N_MERL: usize = 90;
 
+/// The shipped nets' weights file (data/nets/weights.safetensors), built into the library.
+pub static BUILTIN_WEIGHTS: &[u8] = include_bytes!("../../data/nets/weights.safetensors");
+
 /// Largest exponent of a predicted material: model.py clamps a mix to [0, 1e4].
 const MAX_MIX_EXPONENT: f32 = 1e4;
 
@@ -81,7 +84,23 @@ impl Nets {
     /// safetensors, not matedit nets, or misses a tensor or has one of the wrong shape for
     /// its config is an [`Error::File`] naming the file and the tensor.
     pub fn load(path: &Path) -> Result<Nets> {
-        let (cfg, mut w) = Weights::read(path)?;
+        let (cfg, w) = Weights::read(path)?;
+        Self::build(cfg, w)
+    }
+
+    /// The shipped nets (data/nets/weights.safetensors, built into the binary; their model
+    /// card is docs/nets_card.md).
+    pub fn builtin() -> Result<Nets> {
+        Self::from_bytes(Path::new("data/nets/weights.safetensors"), BUILTIN_WEIGHTS)
+    }
+
+    /// [`Nets::load`] on a weights file's bytes; `path` names it in errors.
+    pub fn from_bytes(path: &Path, bytes: &[u8]) -> Result<Nets> {
+        let (cfg, w) = Weights::parse(path, bytes)?;
+        Self::build(cfg, w)
+    }
+
+    fn build(cfg: NetsConfig, mut w: Weights) -> Result<Nets> {
         let normals = NormalsNet::new(&mut w, &cfg)?;
         let material = GlobalNet::new(&mut w, "material.net", &cfg, cfg.basis)?;
         let presets = w.take("material.presets", &[cfg.basis, N_PARAMS])?;

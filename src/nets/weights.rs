@@ -66,8 +66,13 @@ impl Weights {
     /// float32).
     pub(super) fn read(path: &Path) -> Result<(NetsConfig, Weights)> {
         let bytes = std::fs::read(path).map_err(|e| Error::file(path, e.to_string()))?;
+        Self::parse(path, &bytes)
+    }
+
+    /// [`Weights::read`] on a file's bytes; `path` names it in errors.
+    pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<(NetsConfig, Weights)> {
         let bad = |m: String| Error::file(path, m);
-        let (_, meta) = SafeTensors::read_metadata(&bytes)
+        let (_, meta) = SafeTensors::read_metadata(bytes)
             .map_err(|e| bad(format!("not a safetensors file ({e})")))?;
         let meta = meta.metadata().clone().unwrap_or_default();
         match meta.get("format") {
@@ -96,7 +101,7 @@ impl Weights {
         if too_large {
             return Err(bad(format!("metadata config: {config} is too large")));
         }
-        let st = SafeTensors::deserialize(&bytes)
+        let st = SafeTensors::deserialize(bytes)
             .map_err(|e| bad(format!("not a safetensors file ({e})")))?;
         let mut tensors = HashMap::new();
         for (name, view) in st.tensors() {

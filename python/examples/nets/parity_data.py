@@ -15,6 +15,12 @@ parity.safetensors holds, per case C:
     ... parity_data.py --default-weights PATH
 
 writes only the weights of a default `NetsConfig()` (random, seed 0) to PATH, for timing.
+
+    ... parity_data.py --shipped CARD_DATA OUT
+
+writes OUT (tests/data/nets/shipped_parity.safetensors) with the same cases for the
+built-in nets (data/nets/weights.safetensors, what `matedit.nets.load()` loads): samples 0-3 of the committed test set CARD_DATA
+(python/tests/data/nets_card) with their masks, and sample 4 without.
 """
 
 from __future__ import annotations
@@ -44,7 +50,44 @@ def disc(h: int, w: int) -> np.ndarray:
     return (x - w / 2 + 0.5) ** 2 + (y - h / 2 + 0.5) ** 2 < (min(h, w) / 2.5) ** 2
 
 
+def predictions(nets, cases: dict) -> dict:
+    data = {}
+    for name, (img, mask) in cases.items():
+        pred = nets.predict(img, mask)
+        with torch.no_grad():
+            t = torch.from_numpy(img)[None]
+            if mask is None:
+                logits = nets.normals(prepare(t))[1][0]
+            else:
+                m = torch.from_numpy(mask)[None]
+                logits = nets(prepare(t, m), m)["mask_logits"][0]
+        data[f"{name}.image"] = img
+        if mask is not None:
+            data[f"{name}.mask_in"] = mask.astype(np.uint8)
+        data[f"{name}.normals"] = pred["normals"].astype(np.float32)
+        data[f"{name}.mask"] = pred["mask"].astype(np.uint8)
+        data[f"{name}.mask_prob"] = torch.sigmoid(logits).numpy().astype(np.float32)
+        data[f"{name}.env"] = pred["env"].astype(np.float32)
+        data[f"{name}.ctrl"] = pred["ctrl"].astype(np.float64)
+        fg = pred["mask"].mean()
+        print(f"{name}: {img.shape[0]}x{img.shape[1]}, mask {fg:.2f} of the pixels, min |logit| {logits.abs().min():.2e}")
+    return data
+
+
 def main() -> None:
+    if len(sys.argv) == 4 and sys.argv[1] == "--shipped":
+        from matedit.nets import load
+        from matedit.nets.data import samples
+
+        nets = load(Path(__file__).parents[3] / "data/nets/weights.safetensors").eval()
+        cases = {}
+        for i, smp in zip(range(5), samples(sys.argv[2])):
+            img = smp["image"].numpy().astype(np.float32)
+            cases[f"sample{i}"] = (img, smp["mask"].numpy() if i < 4 else None)
+        data = predictions(nets, cases)
+        save_file({k: np.ascontiguousarray(v) for k, v in data.items()}, sys.argv[3])
+        print(f"wrote {sys.argv[3]} ({Path(sys.argv[3]).stat().st_size} bytes)")
+        return
     if len(sys.argv) == 3 and sys.argv[1] == "--default-weights":
         torch.manual_seed(0)
         save(Nets(NetsConfig()), sys.argv[2])
@@ -69,26 +112,7 @@ def main() -> None:
         # divides rounding noise by sqrt(eps), and PyTorch and candle round differently
         "black": (image(rng, 8, 10) * ~disc(8, 10)[..., None], disc(8, 10)),
     }
-    data = {}
-    for name, (img, mask) in cases.items():
-        pred = nets.predict(img, mask)
-        with torch.no_grad():
-            t = torch.from_numpy(img)[None]
-            if mask is None:
-                logits = nets.normals(prepare(t))[1][0]
-            else:
-                m = torch.from_numpy(mask)[None]
-                logits = nets(prepare(t, m), m)["mask_logits"][0]
-        data[f"{name}.image"] = img
-        if mask is not None:
-            data[f"{name}.mask_in"] = mask.astype(np.uint8)
-        data[f"{name}.normals"] = pred["normals"].astype(np.float32)
-        data[f"{name}.mask"] = pred["mask"].astype(np.uint8)
-        data[f"{name}.mask_prob"] = torch.sigmoid(logits).numpy().astype(np.float32)
-        data[f"{name}.env"] = pred["env"].astype(np.float32)
-        data[f"{name}.ctrl"] = pred["ctrl"].astype(np.float64)
-        fg = pred["mask"].mean()
-        print(f"{name}: {img.shape[0]}x{img.shape[1]}, mask {fg:.2f} of the pixels, min |logit| {logits.abs().min():.2e}")
+    data = predictions(nets, cases)
     save_file({k: np.ascontiguousarray(v) for k, v in data.items()}, str(out / "parity.safetensors"))
     size = sum(p.stat().st_size for p in out.glob("*.safetensors"))
     print(f"wrote {out} ({size} bytes)")

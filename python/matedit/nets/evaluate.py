@@ -14,10 +14,14 @@ metric is over the object's pixels (the true mask), averaged over samples:
   the training materials' presets);
 - light: scale-invariant log RMSE, the RMS over texels and channels of d - mean(d) with
   d = log(L' + 1e-3) - log(L / s + 1e-3); baseline: `mean_light`, the training lights'
-  geometric mean recorded in the weights;
+  geometric mean recorded in the weights; and the PSNR (dB) of a white Lambertian sphere
+  (preset matte-white) lit by the predicted light against the same sphere lit by the true
+  one (light_diffuse_psnr_db);
 - I' = R(n', m', L') against I / s and O' = R(n', m_t, L') against O = R(n, m_t, L / s),
   m_t the next sample's material: PSNR (dB) over the object, peak = the target's maximum
-  there; baseline: the three baselines rendered the same way.
+  there; baseline: the three baselines rendered the same way. unedited_psnr_db is I / s
+  itself against O (the same in both columns): O' beats leaving the photo alone by
+  edit_psnr_db - unedited_psnr_db.
 It prints a table and writes the numbers as JSON.
 """
 
@@ -164,19 +168,26 @@ def _eval_batch(nets, b, probe, m_mean, l_mean, device, acc, angles, where: str)
     m_t = b["ctrl"].roll(1, 0)
     o = matedit.torch.render(b["normals"], env_t, m_t, device=device)
     sph_true = spheres(b["ctrl"], probe, device)
+    # the light judged by a white Lambertian sphere it lights (preset matte-white)
+    white = torch.from_numpy(matedit.preset("matte-white")).float().expand(nb, -1).contiguous()
+    diffuse_true = matedit.torch.render(probe[0], env_t, white, device=device)
     for kind, (n, ctrl, env) in guesses.items():
         angles[kind].append(angles_deg(n, b["normals"], mask))
         sph = spheres(ctrl, probe, device)
         i_p = matedit.torch.render(n, env, ctrl, device=device)
         o_p = matedit.torch.render(n, env, m_t, device=device)
+        diffuse = matedit.torch.render(probe[0], env, white, device=device)
         for j in range(nb):
             acc[kind].append(
                 {
                     "mask_iou": iou(pred_mask[j] if kind == "nets" else torch.ones_like(mask[j]), mask[j]),
                     "material_sphere_psnr_db": psnr(sph[j], sph_true[j]),
                     "light_si_log_rmse": si_log_rmse(env[j], env_t[j]),
+                    "light_diffuse_psnr_db": psnr(diffuse[j], diffuse_true[j], probe[0].abs().sum(-1) > 0),
                     "render_psnr_db": psnr(i_p[j], target[j], mask[j]),
                     "edit_psnr_db": psnr(o_p[j], o[j], mask[j]),
+                    # the edit left undone: the image I itself against O
+                    "unedited_psnr_db": psnr(target[j], o[j], mask[j]),
                 }
             )
 

@@ -377,18 +377,30 @@ def save(nets: Nets, path, extra: dict | None = None) -> None:
     save_file(state, str(path), metadata=meta)
 
 
-def load(path) -> Nets:
-    """Nets from a safetensors file written by `save` (or by `python -m matedit.nets.train`)."""
+def load(path=None) -> Nets:
+    """Nets from a safetensors file written by `save` (or by `python -m matedit.nets.train`);
+    without a path, the built-in nets (data/nets/weights.safetensors, the ones `matedit
+    edit` runs; docs/nets_card.md)."""
     from safetensors import safe_open
 
-    try:
-        with safe_open(str(path), framework="pt") as f:
-            meta = f.metadata() or {}
-            state = {k: f.get_tensor(k) for k in f.keys()}
-    except FileNotFoundError:
-        raise ValueError(f"{path}: no such file") from None
-    except Exception as e:
-        raise ValueError(f"{path}: not a safetensors file ({e})") from None
+    if path is None:
+        import struct
+
+        from safetensors.torch import load as load_bytes
+
+        raw = matedit.builtin_weights()
+        header = struct.unpack("<Q", raw[:8])[0]
+        meta = json.loads(raw[8 : 8 + header]).get("__metadata__", {})
+        state, path = load_bytes(raw), "data/nets/weights.safetensors (built in)"
+    else:
+        try:
+            with safe_open(str(path), framework="pt") as f:
+                meta = f.metadata() or {}
+                state = {k: f.get_tensor(k) for k in f.keys()}
+        except FileNotFoundError:
+            raise ValueError(f"{path}: no such file") from None
+        except Exception as e:
+            raise ValueError(f"{path}: not a safetensors file ({e})") from None
     if meta.get("format") != "matedit-nets 1":
         raise ValueError(f"{path}: not matedit nets weights (metadata format {meta.get('format')!r})")
     known = {f.name for f in fields(NetsConfig)}

@@ -1,0 +1,80 @@
+"""matedit.edit: the object of a photo made of another material (docs/edit.md), with the
+built-in nets; and matedit.nets.load() without a path."""
+
+import numpy as np
+import pytest
+
+import matedit
+
+
+def photo():
+    """A gold sphere (48 px) under the built-in sky on a dim noisy background, and its mask."""
+    img = (np.random.default_rng(0).random((64, 64, 3)) * 0.2).astype(np.float32)
+    normals = matedit.sphere(48)
+    on = np.abs(normals).sum(-1) > 0
+    img[8:56, 8:56][on] = matedit.render(normals, matedit.sky(16, 32), matedit.preset("gold"))[on]
+    mask = np.zeros((64, 64), bool)
+    mask[8:56, 8:56] = on
+    return img, mask
+
+
+def test_edit_a_photo():
+    img, mask = photo()
+    r = matedit.edit(img, "pvc", mask=mask, steps=20)
+    assert r["edit"].shape == (64, 64, 3) and r["edit"].dtype == np.float32
+    assert np.array_equal(r["mask"], mask)
+    # the background is the photo's, the object changed
+    off = ~mask
+    off[1:-1, 1:-1] &= ~(mask[:-2, 1:-1] | mask[2:, 1:-1] | mask[1:-1, :-2] | mask[1:-1, 2:])
+    assert np.array_equal(r["edit"][off & (r["alpha"] == 0)], img[off & (r["alpha"] == 0)])
+    assert np.abs(r["edit"][mask] - img[mask]).mean() > 0.01
+    assert r["psnr_refined"] >= r["psnr_predicted"] and len(r["losses"]) >= 1
+    assert r["material"].shape == (108,) and r["env"].shape == (16, 32, 3)
+    # an 8-bit sRGB photo and --like
+    r2 = matedit.edit((np.clip(img, 0, 1) * 255).astype(np.uint8), like=img, mask=mask, like_mask=mask, steps=3)
+    assert r2["edit"].dtype == np.float32
+
+
+def test_bad_inputs_raise_value_error():
+    img, mask = photo()
+    with pytest.raises(ValueError, match="unknown preset 'nope'"):
+        matedit.edit(img, "nope", mask=mask)
+    with pytest.raises(ValueError, match="too small to hold an object"):
+        matedit.edit(img[:8, :8], "pvc")
+    with pytest.raises(ValueError, match=r"mask: shape \[32, 32\], expected \(64, 64\)"):
+        matedit.edit(img, "pvc", mask=mask[:32, :32])
+    with pytest.raises(ValueError, match="no background"):
+        matedit.edit(img, "pvc", mask=np.ones((64, 64), bool))
+    bad = img.copy()
+    bad[3, 3, 0] = np.nan
+    with pytest.raises(ValueError, match="NaN or infinite"):
+        matedit.edit(bad, "pvc", mask=mask)
+    with pytest.raises(ValueError, match="give material or like"):
+        matedit.edit(img)
+
+
+def test_builtin_nets_load():
+    import matedit.nets
+
+    nets = matedit.nets.load()
+    assert len(nets.cfg.basis) == 60 and nets.material.presets.shape == (60, 108)
+
+
+def test_builtin_nets_give_the_cards_metrics():
+    """The built-in nets on the committed held-out set (16 samples of test.json's sources,
+    python/examples/nets/paper/card.json) give docs/nets_card.md's figures: every metric
+    within 0.05 (dB, degrees, %) or 0.002 (IoU, RMSE) of expected.json."""
+    import json
+    import pathlib
+
+    import matedit.nets
+    from matedit.nets.evaluate import evaluate
+
+    folder = pathlib.Path(__file__).parent / "data" / "nets_card"
+    want = json.loads((folder / "expected.json").read_text())
+    got = evaluate(matedit.nets.load(), folder)
+    assert got["samples"] == want["samples"] == 16
+    for kind in ("nets", "baselines"):
+        for name, value in want[kind].items():
+            tol = 0.002 if name in ("mask_iou", "light_si_log_rmse") else 0.05
+            assert abs(got[kind][name] - value) <= tol, (kind, name, got[kind][name], value)

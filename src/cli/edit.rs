@@ -1,0 +1,363 @@
+//! `matedit edit`: the object in a photo made of another material (library:
+//! `matedit::edit::photo`).
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use matedit::edit::photo::{self, Decomposition, PhotoOptions};
+use matedit::io::{self, Format, Preview};
+use matedit::nets::Nets;
+use matedit::{Convention, Device, Image, Material, NormalMap, Renderer};
+use serde_json::json;
+
+use super::shared::{Failure, runtime};
+
+/// Shown after the options by `matedit help edit`.
+pub const EXAMPLES: &str = "\
+Examples:
+  matedit edit photo.jpg --material gold -o out/            (a preset: `matedit presets`)
+  matedit edit photo.png --material brass.json -o out/ --mask object.png
+  matedit edit photo.exr --like other.jpg -o out/          (the other photo's material)
+
+Writes OUT_DIR/edit.(png|jpg|exr) (the input's kind), normals.png, mask.png, light.exr,
+material.json, sphere.png (the refined material on a sphere under the built-in sky),
+compare.png (photo | edit | normals | sphere) and report.json (stage times, PSNR of the
+re-rendered photo before and after refinement). A PNG's alpha is its mask unless --mask
+is given; without either, the nets find the object.";
+
+/// The options of `matedit edit`.
+#[derive(clap::Args)]
+pub struct Args {
+    /// The photo: JPEG or PNG (sRGB), EXR or NPY (linear).
+    #[arg(value_name = "PHOTO")]
+    photo: PathBuf,
+    /// The new material: a preset name or a material .json file.
+    #[arg(
+        long,
+        value_name = "PRESET|FILE",
+        required_unless_present = "like",
+        conflicts_with = "like"
+    )]
+    material: Option<String>,
+    /// Take the material predicted and refined from another photo.
+    #[arg(long, value_name = "OTHER_PHOTO")]
+    like: Option<PathBuf>,
+    /// Output folder (created if missing).
+    #[arg(short, long, value_name = "OUT_DIR")]
+    output: PathBuf,
+    /// The object's mask (PNG, EXR or NPY, the photo's size; a pixel counts above half).
+    #[arg(long, value_name = "MASK")]
+    mask: Option<PathBuf>,
+    /// Refinement steps through the layer.
+    #[arg(long, value_name = "K", default_value_t = PhotoOptions::default().steps)]
+    steps: usize,
+    /// The nets' predictions as they are, without refinement.
+    #[arg(long, conflicts_with = "steps")]
+    no_refine: bool,
+    /// Weights of the nets (default: the ones built in; docs/nets_card.md).
+    #[arg(long, value_name = "FILE")]
+    weights: Option<PathBuf>,
+    /// Backend, as for `render`.
+    #[arg(long, value_name = "auto|gpu|cpu|reference", default_value = "auto")]
+    device: Device,
+}
+
+/// Runs `matedit edit`.
+pub fn run(args: &Args) -> Result<(), Failure> {
+    let t0 = Instant::now();
+    let kind = io::format_of(
+        &args.photo,
+        "the photo",
+        &[Format::Jpeg, Format::Png, Format::Exr, Format::Npy],
+    )?;
+    let (photo, alpha_mask) = load_photo(&args.photo)?;
+    let mask = match &args.mask {
+        Some(m) => Some(load_mask(m, &photo)?),
+        None => alpha_mask,
+    };
+    let target = match &args.material {
+        Some(m) => Some(material_named(m)?),
+        None => None,
+    };
+    let other = match &args.like {
+        Some(p) => Some(load_photo(p)?),
+        None => None,
+    };
+    let nets = match &args.weights {
+        Some(w) => Nets::load(w)?,
+        None => Nets::builtin()?,
+    };
+    let renderer = Renderer::new(args.device)?;
+    let options = PhotoOptions {
+        steps: if args.no_refine { 0 } else { args.steps },
+        ..PhotoOptions::default()
+    };
+    let load_s = t0.elapsed().as_secs_f64();
+    let d = photo::decompose(&renderer, &nets, &photo, mask.as_deref(), &options)?;
+    let t = Instant::now();
+    let (material, like) = match (target, other) {
+        (Some(m), _) => (m, None),
+        (None, Some((img, m))) => {
+            let o =
+                photo::decompose(&renderer, &nets, &img, m.as_deref(), &options).map_err(|e| {
+                    Failure::from(matedit::Error::Invalid(format!(
+                        "--like {}: {e}",
+                        args.like
+                            .as_ref()
+                            .map_or(String::new(), |p| p.display().to_string())
+                    )))
+                })?;
+            (o.material.clone(), Some(o))
+        }
+        (None, None) => unreachable!("clap requires --material or --like"),
+    };
+    let like_s = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let object = photo::render_object(&renderer, &d, &material)?;
+    let edit = photo::composite(&photo, &object, &d.alpha);
+    let render_s = t.elapsed().as_secs_f64();
+
+    let t = Instant::now();
+    let files = encode_outputs(args, kind, &photo, &edit, &d, &material)?;
+    let mut stages = serde_json::Map::new();
+    stages.insert("load".into(), json!(load_s));
+    for (name, s) in &d.stages {
+        stages.insert((*name).into(), json!(s));
+    }
+    if like.is_some() {
+        stages.insert("like".into(), json!(like_s));
+    }
+    stages.insert("render".into(), json!(render_s));
+    let report = json!({
+        "photo": args.photo.display().to_string(),
+        "size": [d.width, d.height],
+        "crop": {"x0": d.crop.x0, "y0": d.crop.y0, "size": d.crop.size},
+        "object_pixels": d.mask.iter().filter(|&&m| m).count(),
+        "material": material.name,
+        "like": args.like.as_ref().map(|p| p.display().to_string()),
+        "steps": d.losses.len(),
+        "loss_first": d.losses.first(),
+        "loss_last": d.losses.last(),
+        "psnr_predicted_db": d.psnr_predicted,
+        "psnr_refined_db": d.psnr_refined,
+        "seconds": stages,
+    });
+    io::create_dirs(&args.output)?;
+    let mut staged = Vec::new();
+    for (name, bytes) in &files {
+        staged.push(io::write::stage(&args.output.join(name), bytes)?);
+    }
+    let mut report = report;
+    report["seconds"]["write"] = json!(t.elapsed().as_secs_f64());
+    report["seconds"]["total"] = json!(t0.elapsed().as_secs_f64());
+    let mut text = serde_json::to_vec_pretty(&report).unwrap_or_default();
+    text.push(b'\n');
+    staged.push(io::write::stage(&args.output.join("report.json"), &text)?);
+    for s in staged {
+        s.commit()?;
+    }
+    eprintln!(
+        "matedit: edit: I' PSNR {:.2} dB predicted, {:.2} dB refined ({} steps); {:.2} s in all; wrote {}",
+        d.psnr_predicted,
+        d.psnr_refined,
+        d.losses.len(),
+        t0.elapsed().as_secs_f64(),
+        args.output.display()
+    );
+    Ok(())
+}
+
+/// A photo, linear RGB, with a PNG's alpha as its mask (where it has one that is not
+/// opaque everywhere).
+pub(super) fn load_photo(path: &Path) -> Result<(Image, Option<Vec<bool>>), Failure> {
+    let photo = io::load_image(path)?;
+    let mask = if Format::of(path) == Some(Format::Png) {
+        let d = io::png::decode(path)?;
+        let max = d.max_value();
+        let alpha: Vec<bool> = match d.channels {
+            2 | 4 => d
+                .samples
+                .chunks_exact(d.channels)
+                .map(|p| f64::from(p[d.channels - 1]) > max / 2.0)
+                .collect(),
+            _ => Vec::new(),
+        };
+        (!alpha.is_empty() && alpha.iter().any(|&a| !a)).then_some(alpha)
+    } else {
+        None
+    };
+    photo::check_photo(&photo)
+        .map_err(|e| Failure::from(matedit::Error::file(path, e.to_string())))?;
+    Ok((photo, mask))
+}
+
+fn load_mask(path: &Path, photo: &Image) -> Result<Vec<bool>, Failure> {
+    let (w, h, m) = io::load_mask(path)?;
+    if (w, h) != (photo.width, photo.height) {
+        return Err(Failure::from(matedit::Error::file(
+            path,
+            format!(
+                "mask is {w}x{h}, the photo {}x{}",
+                photo.width, photo.height
+            ),
+        )));
+    }
+    photo::check_mask(&m, w, h)
+        .map_err(|e| Failure::from(matedit::Error::file(path, e.to_string())))?;
+    Ok(m)
+}
+
+/// A preset by name, or a material file.
+fn material_named(name: &str) -> Result<Material, Failure> {
+    if let Some(m) = matedit::presets::lookup(name) {
+        return Ok(m);
+    }
+    let path = Path::new(name);
+    if path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("json"))
+    {
+        return Ok(io::load_material(path)?);
+    }
+    Err(Failure::from(matedit::Error::Invalid(format!(
+        "--material {name}: not a preset (`matedit presets` lists them) nor a .json material file"
+    ))))
+}
+
+/// Every output file but the report, encoded.
+fn encode_outputs(
+    args: &Args,
+    kind: Format,
+    photo: &Image,
+    edit: &Image,
+    d: &Decomposition,
+    material: &Material,
+) -> Result<Vec<(String, Vec<u8>)>, Failure> {
+    let preview = Preview::default();
+    let edit_file = match kind {
+        Format::Jpeg => ("edit.jpg", encode_jpeg(edit)?),
+        Format::Png => ("edit.png", io::png::encode_preview(edit, &preview)?),
+        _ => (
+            "edit.exr",
+            io::exr::encode_rgb(edit.width, edit.height, &edit.pixels)?,
+        ),
+    };
+    let crop_mask: Vec<bool> = d.normals.normals.iter().map(|n| n != &[0.0; 3]).collect();
+    let sky = matedit::defaults::procedural_env(32, 64, Convention::Equirect);
+    let sphere_normals = NormalMap::sphere(128);
+    let renderer = Renderer::new(Device::Cpu)?;
+    let sphere = renderer
+        .render(&matedit::Batch::single(matedit::Scene {
+            normals: sphere_normals,
+            env: sky,
+            material: d.material.clone(),
+            camera: matedit::Camera::Orthographic,
+        })?)?
+        .remove(0);
+    let compare = compare_strip(photo, edit, &d.normals, &crop_mask, &sphere, &preview);
+    let description = format!(
+        "the material of matedit edit {} ({})",
+        args.photo.display(),
+        material.name
+    );
+    Ok(vec![
+        (edit_file.0.to_string(), edit_file.1),
+        (
+            "normals.png".into(),
+            io::png::encode_normals(&d.normals, &crop_mask)?,
+        ),
+        (
+            "mask.png".into(),
+            io::png::encode_mask(d.width, d.height, &d.mask)?,
+        ),
+        (
+            "light.exr".into(),
+            io::exr::encode_rgb(d.env.width, d.env.height, &d.env.texels)?,
+        ),
+        (
+            "material.json".into(),
+            io::json::encode_material(&d.material, Some(&description)),
+        ),
+        (
+            "sphere.png".into(),
+            io::png::encode_preview(&sphere, &preview)?,
+        ),
+        ("compare.png".into(), compare?),
+    ])
+}
+
+fn encode_jpeg(image: &Image) -> Result<Vec<u8>, Failure> {
+    let preview = Preview::default();
+    let rgb: Vec<u8> = image
+        .pixels
+        .iter()
+        .flat_map(|p| p.map(|v| io::png::display_value(v, &preview)))
+        .collect();
+    let mut out = Vec::new();
+    jpeg_encoder::Encoder::new(&mut out, 92)
+        .encode(
+            &rgb,
+            image.width as u16,
+            image.height as u16,
+            jpeg_encoder::ColorType::Rgb,
+        )
+        .map_err(|e| {
+            runtime(matedit::Error::Invalid(format!(
+                "encoding the edit as JPEG: {e}"
+            )))
+        })?;
+    Ok(out)
+}
+
+/// photo | edit | normals | sphere, each scaled to 256 rows, on a dark background.
+fn compare_strip(
+    photo: &Image,
+    edit: &Image,
+    normals: &NormalMap,
+    mask: &[bool],
+    sphere: &Image,
+    preview: &Preview,
+) -> matedit::Result<Vec<u8>> {
+    const H: usize = 256;
+    const GAP: usize = 8;
+    let pw = (photo.width * H / photo.height).max(1);
+    let normal_rgb = Image {
+        width: normals.width,
+        height: normals.height,
+        // shown as (n + 1) / 2, already display values: undo the sRGB curve of the preview
+        pixels: normals
+            .normals
+            .iter()
+            .zip(mask)
+            .map(|(n, &m)| {
+                if m {
+                    n.map(|v| io::png::srgb_decode((v + 1.0) / 2.0))
+                } else {
+                    [0.0; 3]
+                }
+            })
+            .collect(),
+    };
+    let tiles = [
+        matedit::edit::transfer::resize(photo, pw, H),
+        matedit::edit::transfer::resize(edit, pw, H),
+        matedit::edit::transfer::resize(&normal_rgb, H, H),
+        matedit::edit::transfer::resize(sphere, H, H),
+    ];
+    let width = tiles.iter().map(|t| t.width).sum::<usize>() + GAP * (tiles.len() + 1);
+    let height = H + 2 * GAP;
+    let mut rgb = vec![24u8; width * height * 3];
+    let mut ox = GAP;
+    for t in &tiles {
+        for y in 0..t.height {
+            for x in 0..t.width {
+                let o = ((GAP + y) * width + ox + x) * 3;
+                for k in 0..3 {
+                    rgb[o + k] = io::png::display_value(t.pixels[y * t.width + x][k], preview);
+                }
+            }
+        }
+        ox += t.width + GAP;
+    }
+    io::png::encode_rgb8(width, height, &rgb)
+}

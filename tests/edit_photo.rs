@@ -1,0 +1,310 @@
+//! `matedit edit`: a photo the test renders (a procedural shape under the built-in sky,
+//! on a grey background), edited with a preset, a material file and another photo's
+//! material, with the small nets of tests/data/nets and with the built-in ones; the
+//! outputs exist and are sane, refinement lowers the loss and raises the PSNR of the
+//! re-rendered photo, and bad inputs fail with one line, exit 2 and nothing written.
+
+use std::path::{Path, PathBuf};
+
+use matedit::io::{self, Preview};
+use matedit::shapes::{self, Rotation, Shape, View};
+use matedit::{Batch, Camera, Convention, Device, Image, Renderer, Scene};
+
+/// A PNG photo of `shape` (its seed, turned) made of `preset` under the built-in sky,
+/// `size` pixels square, on a grey background; and its mask as a PNG.
+fn photo(dir: &Path, name: &str, shape: &str, preset: &str, size: usize) -> (PathBuf, PathBuf) {
+    let spec: Shape = shape.parse().unwrap();
+    let view = View {
+        width: size,
+        height: size,
+        camera: Camera::Orthographic,
+        rotation: Rotation {
+            yaw: 30.0,
+            pitch: 20.0,
+            roll: 0.0,
+        },
+        flat: false,
+        margin: 0.15,
+    };
+    let (normals, mask) = shapes::render_normals(&spec.mesh(0), &view).unwrap();
+    let scene = Scene {
+        normals,
+        env: matedit::defaults::procedural_env(16, 32, Convention::Equirect),
+        material: matedit::presets::lookup(preset).unwrap(),
+        camera: Camera::Orthographic,
+    };
+    let mut img = Renderer::new(Device::Cpu)
+        .unwrap()
+        .render(&Batch::single(scene).unwrap())
+        .unwrap()
+        .remove(0);
+    for (p, &m) in img.pixels.iter_mut().zip(&mask) {
+        if !m {
+            *p = [0.18; 3];
+        }
+    }
+    let (p, mpath) = (
+        dir.join(format!("{name}.png")),
+        dir.join(format!("{name}_mask.png")),
+    );
+    std::fs::write(
+        &p,
+        io::png::encode_preview(&img, &Preview::default()).unwrap(),
+    )
+    .unwrap();
+    std::fs::write(&mpath, io::png::encode_mask(size, size, &mask).unwrap()).unwrap();
+    (p, mpath)
+}
+
+fn small_weights() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/nets/weights.safetensors")
+}
+
+fn edit(args: &[&std::ffi::OsStr]) -> assert_cmd::Command {
+    let mut cmd = assert_cmd::cargo::cargo_bin_cmd!("matedit");
+    cmd.arg("edit").args(args).args(["--device", "cpu"]);
+    cmd
+}
+
+fn report(dir: &Path) -> serde_json::Value {
+    serde_json::from_slice(&std::fs::read(dir.join("report.json")).unwrap()).unwrap()
+}
+
+#[test]
+fn a_photo_edited_with_a_preset_a_file_and_another_photo() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (a, a_mask) = photo(tmp.path(), "a", "blobby:seed=3", "plastic-red", 96);
+    let (b, _) = photo(tmp.path(), "b", "torus:seed=2", "gold", 80);
+    let out = tmp.path().join("out");
+    edit(&[
+        a.as_os_str(),
+        "--mask".as_ref(),
+        a_mask.as_os_str(),
+        "--material".as_ref(),
+        "gold".as_ref(),
+        "-o".as_ref(),
+        out.as_os_str(),
+        "--steps".as_ref(),
+        "40".as_ref(),
+    ])
+    .assert()
+    .success();
+    for f in [
+        "edit.png",
+        "normals.png",
+        "mask.png",
+        "light.exr",
+        "material.json",
+        "sphere.png",
+        "compare.png",
+        "report.json",
+    ] {
+        assert!(out.join(f).is_file(), "{f}");
+    }
+    let r = report(&out);
+    assert_eq!(r["size"], serde_json::json!([96, 96]));
+    assert_eq!(r["steps"], 40);
+    // refinement lowers the loss and brings the re-rendered photo closer
+    assert!(
+        r["loss_last"].as_f64().unwrap() < r["loss_first"].as_f64().unwrap(),
+        "{r}"
+    );
+    assert!(
+        r["psnr_refined_db"].as_f64().unwrap() > r["psnr_predicted_db"].as_f64().unwrap(),
+        "{r}"
+    );
+    // the edit keeps the background and changes the object
+    let photo_img = io::load_image(&a).unwrap();
+    let edited = io::load_image(&out.join("edit.png")).unwrap();
+    let (_, _, mask) = io::load_mask(&a_mask).unwrap();
+    let blurred_edge = |i: usize| {
+        let (x, y) = ((i % 96) as i64, (i / 96) as i64);
+        (-1..=1).any(|dy| {
+            (-1..=1).any(|dx| {
+                let (xx, yy) = (x + dx, y + dy);
+                (0..96).contains(&xx) && (0..96).contains(&yy) && mask[(yy * 96 + xx) as usize]
+            })
+        })
+    };
+    let mut changed = 0;
+    for (i, (p, e)) in photo_img.pixels.iter().zip(&edited.pixels).enumerate() {
+        if !blurred_edge(i) {
+            assert!(
+                (0..3).all(|k| (p[k] - e[k]).abs() < 1e-6),
+                "background pixel {i} changed"
+            );
+        } else if mask[i] && (0..3).any(|k| (p[k] - e[k]).abs() > 0.02) {
+            changed += 1;
+        }
+    }
+    let on = mask.iter().filter(|&&m| m).count();
+    assert!(changed > on / 2, "{changed} of {on} object pixels changed");
+
+    // a material file, the small nets, no refinement
+    let gold = tmp.path().join("gold.json");
+    std::fs::write(
+        &gold,
+        io::json::encode_material(&matedit::presets::lookup("gold").unwrap(), None),
+    )
+    .unwrap();
+    let out2 = tmp.path().join("out2");
+    edit(&[
+        a.as_os_str(),
+        "--material".as_ref(),
+        gold.as_os_str(),
+        "-o".as_ref(),
+        out2.as_os_str(),
+        "--no-refine".as_ref(),
+        "--weights".as_ref(),
+        small_weights().as_os_str(),
+        "--mask".as_ref(),
+        a_mask.as_os_str(),
+    ])
+    .assert()
+    .success();
+    let r2 = report(&out2);
+    assert_eq!(r2["steps"], 0);
+    assert_eq!(r2["psnr_refined_db"], r2["psnr_predicted_db"]);
+    // with the same material and no refinement the edit is the same picture
+    assert_eq!(
+        std::fs::read(out.join("mask.png")).unwrap(),
+        std::fs::read(out2.join("mask.png")).unwrap()
+    );
+
+    // another photo's material (the nets find b's object: no mask)
+    let out3 = tmp.path().join("out3");
+    edit(&[
+        a.as_os_str(),
+        "--like".as_ref(),
+        b.as_os_str(),
+        "-o".as_ref(),
+        out3.as_os_str(),
+        "--steps".as_ref(),
+        "10".as_ref(),
+        "--mask".as_ref(),
+        a_mask.as_os_str(),
+    ])
+    .assert()
+    .success();
+    assert!(report(&out3)["seconds"]["like"].as_f64().unwrap() > 0.0);
+
+    // the grid from photos: row i keeps photo i, column j brings photo j's material
+    let grid = tmp.path().join("grid.png");
+    let mut cmd = assert_cmd::cargo::cargo_bin_cmd!("matedit");
+    cmd.arg("grid")
+        .args([&a, &b])
+        .args(["--cell", "32", "--steps", "5", "--device", "cpu", "-o"])
+        .arg(&grid);
+    cmd.assert().success();
+    let g = io::load_image(&grid).unwrap();
+    assert_eq!((g.width, g.height), (2 * 32 + 3 * 4, 2 * 32 + 3 * 4)); // cells and 4-pixel gaps
+}
+
+#[test]
+fn bad_inputs_fail_with_one_line_and_write_nothing() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (a, a_mask) = photo(tmp.path(), "a", "capsule:seed=1", "plastic-red", 48);
+    let not_image = tmp.path().join("notes.png");
+    std::fs::write(&not_image, b"hello").unwrap();
+    let empty = tmp.path().join("empty.png");
+    std::fs::write(
+        &empty,
+        io::png::encode_mask(48, 48, &vec![false; 48 * 48]).unwrap(),
+    )
+    .unwrap();
+    let full = tmp.path().join("full.png");
+    std::fs::write(
+        &full,
+        io::png::encode_mask(48, 48, &vec![true; 48 * 48]).unwrap(),
+    )
+    .unwrap();
+    let tiny = tmp.path().join("tiny.png");
+    std::fs::write(
+        &tiny,
+        io::png::encode_rgb8(12, 12, &[100u8; 12 * 12 * 3]).unwrap(),
+    )
+    .unwrap();
+    let huge = tmp.path().join("huge.png");
+    std::fs::write(
+        &huge,
+        io::png::encode_rgb8(8200, 2, &vec![100u8; 8200 * 2 * 3]).unwrap(),
+    )
+    .unwrap();
+    let out = tmp.path().join("out");
+    let cases: Vec<(Vec<&std::ffi::OsStr>, &str)> = vec![
+        (
+            vec![
+                not_image.as_os_str(),
+                "--material".as_ref(),
+                "gold".as_ref(),
+            ],
+            "notes.png",
+        ),
+        (
+            vec![
+                a.as_os_str(),
+                "--mask".as_ref(),
+                empty.as_os_str(),
+                "--material".as_ref(),
+                "gold".as_ref(),
+            ],
+            "0 pixels on the object",
+        ),
+        (
+            vec![
+                a.as_os_str(),
+                "--mask".as_ref(),
+                full.as_os_str(),
+                "--material".as_ref(),
+                "gold".as_ref(),
+            ],
+            "no background",
+        ),
+        (
+            vec![tiny.as_os_str(), "--material".as_ref(), "gold".as_ref()],
+            "too small to hold an object",
+        ),
+        (
+            vec![huge.as_os_str(), "--material".as_ref(), "gold".as_ref()],
+            "over the limit",
+        ),
+        (
+            vec![
+                a.as_os_str(),
+                "--mask".as_ref(),
+                a_mask.as_os_str(),
+                "--material".as_ref(),
+                "unobtainium".as_ref(),
+            ],
+            "not a preset",
+        ),
+        (
+            vec![
+                a.as_os_str(),
+                "--mask".as_ref(),
+                tiny.as_os_str(),
+                "--material".as_ref(),
+                "gold".as_ref(),
+            ],
+            "mask is 12x12",
+        ),
+    ];
+    for (args, want) in cases {
+        let mut all = args.clone();
+        all.extend(["-o".as_ref(), out.as_os_str()]);
+        let o = edit(&all).output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{want}: {err}");
+        assert!(err.contains(want), "{want}: {err}");
+        assert_eq!(
+            err.trim()
+                .lines()
+                .filter(|l| l.starts_with("error"))
+                .count(),
+            1,
+            "{err}"
+        );
+        assert!(!out.exists(), "{want}: wrote {}", out.display());
+    }
+    let _ = Image::zeros(1, 1);
+}
