@@ -1,6 +1,7 @@
 //! The quality of `matedit edit` on a held-out `matedit synth` folder (docs/edit.md).
 //!
-//!     cargo run --release --example edit_eval -- DATA [--limit N] [--steps K] [--weights W]
+//!     cargo run --release --example edit_eval -- DATA [--limit N] [--steps K]
+//!         [--normal-steps J] [--weights W]
 //!
 //! For each sample: the photo I (image.npy) with its true mask is decomposed by the nets (the
 //! built-in ones, or W) and refined with K steps (default 150); O' is the object rendered
@@ -106,8 +107,10 @@ fn main() {
     let renderer = Renderer::new(Device::Cpu).unwrap();
     let samples = read(&data, limit);
     let n = samples.len();
+    let normal_steps: usize = flag("--normal-steps").map_or(0, |v| v.parse().unwrap());
     let options = |steps| PhotoOptions {
         steps,
+        normal_steps,
         ..PhotoOptions::default()
     };
     let t = Instant::now();
@@ -155,7 +158,7 @@ fn main() {
         v[n / 2]
     };
     println!(
-        "{n} samples of {}, {steps} refinement steps",
+        "{n} samples of {}, {steps} refinement steps, {normal_steps} of the normals",
         data.display()
     );
     println!(

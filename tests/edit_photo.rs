@@ -86,6 +86,8 @@ fn a_photo_edited_with_a_preset_a_file_and_another_photo() {
         out.as_os_str(),
         "--steps".as_ref(),
         "40".as_ref(),
+        "--normal-steps".as_ref(),
+        "20".as_ref(),
     ])
     .assert()
     .success();
@@ -104,6 +106,7 @@ fn a_photo_edited_with_a_preset_a_file_and_another_photo() {
     let r = report(&out);
     assert_eq!(r["size"], serde_json::json!([96, 96]));
     assert_eq!(r["steps"], 40);
+    assert_eq!(r["normal_steps"], 20);
     // refinement lowers the loss and brings the re-rendered photo closer
     assert!(
         r["loss_last"].as_f64().unwrap() < r["loss_first"].as_f64().unwrap(),

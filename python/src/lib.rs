@@ -780,6 +780,7 @@ fn edit_photo<'py>(
     out.set_item("psnr_predicted", d.psnr_predicted)?;
     out.set_item("psnr_refined", d.psnr_refined)?;
     out.set_item("losses", d.losses.clone())?;
+    out.set_item("normal_losses", d.normal_losses.clone())?;
     let seconds = PyDict::new(py);
     for (k, v) in &d.stages {
         seconds.set_item(*k, v)?;

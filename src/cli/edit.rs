@@ -51,8 +51,11 @@ pub struct Args {
     /// Refinement steps through the layer.
     #[arg(long, value_name = "K", default_value_t = PhotoOptions::default().steps)]
     steps: usize,
+    /// Refinement steps of the normals after material and light (0: keep the nets' normals).
+    #[arg(long, value_name = "J", default_value_t = PhotoOptions::default().normal_steps)]
+    normal_steps: usize,
     /// The nets' predictions as they are, without refinement.
-    #[arg(long, conflicts_with = "steps")]
+    #[arg(long, conflicts_with_all = ["steps", "normal_steps"])]
     no_refine: bool,
     /// Weights of the nets (default: the ones built in; docs/nets_card.md).
     #[arg(long, value_name = "FILE")]
@@ -90,6 +93,7 @@ pub fn run(args: &Args) -> Result<(), Failure> {
     let renderer = Renderer::new(args.device)?;
     let options = PhotoOptions {
         steps: if args.no_refine { 0 } else { args.steps },
+        normal_steps: if args.no_refine { 0 } else { args.normal_steps },
         ..PhotoOptions::default()
     };
     let load_s = t0.elapsed().as_secs_f64();
@@ -136,6 +140,9 @@ pub fn run(args: &Args) -> Result<(), Failure> {
         "material": material.name,
         "like": args.like.as_ref().map(|p| p.display().to_string()),
         "steps": d.losses.len(),
+        "normal_steps": d.normal_losses.len(),
+        "normal_loss_first": d.normal_losses.first(),
+        "normal_loss_last": d.normal_losses.last(),
         "loss_first": d.losses.first(),
         "loss_last": d.losses.last(),
         "psnr_predicted_db": d.psnr_predicted,

@@ -2,7 +2,8 @@
 //! post-optimization"): the nets ([`crate::nets`]) predict the object's mask, normals,
 //! light and material on a square crop around the object; a fit through the layer
 //! ([`super::fit`]) refines the material and the light from those predictions until the
-//! layer re-renders the photo; the object is then rendered with another material under the
+//! layer re-renders the photo, and, if asked, the normals with those fixed
+//! (`refine_normals`, an experiment: docs/edit.md); the object is then rendered with another material under the
 //! refined light and normals, at the photo's resolution, and composited over the untouched
 //! background with a soft mask.
 //!
@@ -37,6 +38,8 @@ pub const MIN_OBJECT_PIXELS: usize = 16;
 /// Passes of the normals net that find the mask again on the image normalised by the
 /// mask of the pass before (see `decompose`).
 const MASK_PASSES: usize = 3;
+/// Adam's step on the normals' components (a unit vector's).
+const NORMAL_STEP: f64 = 0.01;
 /// The margin of the nets' training images: the object fills the frame but this fraction
 /// of the half-size on each side (`matedit normals --margin`).
 const MARGIN: f64 = 0.05;
@@ -44,8 +47,14 @@ const MARGIN: f64 = 0.05;
 /// How to edit.
 #[derive(Clone, Debug)]
 pub struct PhotoOptions {
-    /// Refinement steps (0: the predictions as they are).
+    /// Refinement steps of material and light (0: the predictions as they are).
     pub steps: usize,
+    /// Refinement steps of the normals after them, material and light fixed (0: none, the
+    /// default: an experiment, docs/edit.md).
+    pub normal_steps: usize,
+    /// Weight of the normals' smoothness prior (the mean squared difference between
+    /// neighbouring normals on the object).
+    pub normal_smoothness: f64,
     /// The refinement runs on the crop box-filtered to at most this many pixels a side.
     pub work_size: usize,
     /// The nets' input size (square; a multiple of 2^(levels - 1)).
@@ -56,6 +65,8 @@ impl Default for PhotoOptions {
     fn default() -> Self {
         PhotoOptions {
             steps: 150,
+            normal_steps: 0,
+            normal_smoothness: 0.05,
             work_size: 128,
             net_size: 64,
         }
@@ -102,8 +113,10 @@ pub struct Decomposition {
     pub psnr_predicted: f64,
     /// As `psnr_predicted`, after refinement.
     pub psnr_refined: f64,
-    /// The refinement's loss per step.
+    /// The refinement's loss per step (material and light).
     pub losses: Vec<f64>,
+    /// The normals' refinement's loss per step (data term and smoothness prior).
+    pub normal_losses: Vec<f64>,
     /// Seconds per stage: "predict", "refine".
     pub stages: Vec<(&'static str, f64)>,
 }
@@ -234,6 +247,19 @@ pub fn decompose(
         let f = fit(renderer, &inputs, &fit_options, &mut |_, _| {})?;
         (f.material, f.env, f.losses)
     };
+    let mut work = work;
+    let mut normals = normals;
+    let mut normal_losses = Vec::new();
+    if options.steps > 0 && options.normal_steps > 0 {
+        let (refined, l) = refine_normals(renderer, &work, &material, &env, options)?;
+        normal_losses = l;
+        normals = upsample_normals(&refined, crop, mask, w, h);
+        work.normals = refined;
+    }
+    let judge = |m: &Material, e: &EnvMap| -> Result<f64> {
+        let img = render(renderer, &work.normals, e, m)?;
+        Ok(psnr(&img, &work.target, &work.mask))
+    };
     let psnr_refined = judge(&material, &env)?;
     Ok(Decomposition {
         width: w,
@@ -249,11 +275,110 @@ pub fn decompose(
         psnr_predicted,
         psnr_refined,
         losses,
+        normal_losses,
         stages: vec![
             ("predict", predict_s),
             ("refine", t.elapsed().as_secs_f64()),
         ],
     })
+}
+
+/// The normals of `work` refined with the material and light fixed: Adam on each object
+/// pixel's normal, renormalised (and kept facing the camera) after each step, on the fit's
+/// data term plus `normal_smoothness` times the mean squared difference between
+/// neighbouring normals on the object. Returns the best normals seen and the loss per step.
+fn refine_normals(
+    renderer: &Renderer,
+    work: &Inputs,
+    material: &Material,
+    env: &EnvMap,
+    options: &PhotoOptions,
+) -> Result<(NormalMap, Vec<f64>)> {
+    use super::adam::Adam;
+    use super::loss::data_term;
+    let (w, h) = (work.normals.width, work.normals.height);
+    let on: Vec<usize> = (0..w * h).filter(|&i| work.mask[i]).collect();
+    let n = (3 * on.len()) as f64;
+    let c = on
+        .iter()
+        .map(|&i| {
+            work.target.pixels[i]
+                .iter()
+                .map(|&v| f64::from(v).max(0.0))
+                .sum::<f64>()
+        })
+        .sum::<f64>()
+        / n;
+    if c <= 0.0 {
+        return Ok((work.normals.clone(), Vec::new()));
+    }
+    // neighbouring pairs on the object, right and down
+    let mut pairs = Vec::new();
+    for &i in &on {
+        if i % w + 1 < w && work.mask[i + 1] {
+            pairs.push((i, i + 1));
+        }
+        if i + w < w * h && work.mask[i + w] {
+            pairs.push((i, i + w));
+        }
+    }
+    let lambda = options.normal_smoothness / pairs.len().max(1) as f64;
+    let mut x: Vec<f64> = on
+        .iter()
+        .flat_map(|&i| work.normals.normals[i].map(f64::from))
+        .collect();
+    let mut adam = Adam::new(x.len());
+    let lr = vec![NORMAL_STEP; x.len()];
+    let mut current = work.normals.clone();
+    let (mut best, mut best_normals, mut losses) = (f64::INFINITY, current.clone(), Vec::new());
+    let wanted = crate::Wanted {
+        env: false,
+        normals: true,
+        ctrl: false,
+    };
+    for _ in 0..options.normal_steps {
+        let batch = Batch::single(Scene {
+            normals: current.clone(),
+            env: env.clone(),
+            material: material.clone(),
+            camera: Camera::Orthographic,
+        })?;
+        let img = renderer.render(&batch)?.remove(0);
+        let (mut loss, up) = data_term(&img, work, c, n);
+        let (mut grads, _) =
+            renderer.backward_wanted_with(&batch, &[up], &crate::Accuracy::Exact, wanted)?;
+        let d_n = grads.remove(0).d_normals;
+        let slot = |i: usize| on.binary_search(&i).unwrap_or(0);
+        let mut g: Vec<f64> = on.iter().flat_map(|&i| d_n[i].map(f64::from)).collect();
+        for &(a, b) in &pairs {
+            let (sa, sb) = (slot(a), slot(b));
+            for k in 0..3 {
+                let d = x[3 * sa + k] - x[3 * sb + k];
+                loss += lambda * d * d;
+                g[3 * sa + k] += 2.0 * lambda * d;
+                g[3 * sb + k] -= 2.0 * lambda * d;
+            }
+        }
+        if !loss.is_finite() || g.iter().any(|v| !v.is_finite()) {
+            break;
+        }
+        losses.push(loss);
+        if loss < best {
+            best = loss;
+            best_normals = current.clone();
+        }
+        adam.step(&mut x, &g, &lr);
+        for (s, &i) in on.iter().enumerate() {
+            let v = &mut x[3 * s..3 * s + 3];
+            v[2] = v[2].max(0.02);
+            let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+            for k in 0..3 {
+                v[k] /= len;
+            }
+            current.normals[i] = [v[0] as f32, v[1] as f32, v[2] as f32];
+        }
+    }
+    Ok((best_normals, losses))
 }
 
 /// The object of `d` rendered with `material` under the refined light, at the photo's
