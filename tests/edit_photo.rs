@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use matedit::io::{self, Preview};
 use matedit::shapes::{self, Rotation, Shape, View};
-use matedit::{Batch, Camera, Convention, Device, Image, Renderer, Scene};
+use matedit::{Batch, Camera, Convention, Device, Renderer, Scene};
 
 /// A PNG photo of `shape` (its seed, turned) made of `preset` under the built-in sky,
 /// `size` pixels square, on a grey background; and its mask as a PNG.
@@ -309,5 +309,4 @@ fn bad_inputs_fail_with_one_line_and_write_nothing() {
         );
         assert!(!out.exists(), "{want}: wrote {}", out.display());
     }
-    let _ = Image::zeros(1, 1);
 }

@@ -236,31 +236,28 @@ pub fn decompose(
     fit_options.steps = options.steps;
     fit_options.work_size = options.work_size;
     let work = inputs.at_work_size(options.work_size);
-    let judge = |m: &Material, e: &EnvMap| -> Result<f64> {
-        let img = render(renderer, &work.normals, e, m)?;
+    // I' against the photo over the object, at the working size, with the given normals
+    let judge = |normals: &NormalMap, m: &Material, e: &EnvMap| -> Result<f64> {
+        let img = render(renderer, normals, e, m)?;
         Ok(psnr(&img, &work.target, &work.mask))
     };
-    let psnr_predicted = judge(&p.material, &p.env)?;
+    let psnr_predicted = judge(&work.normals, &p.material, &p.env)?;
     let (material, env, losses) = if options.steps == 0 {
         (p.material.clone(), p.env.clone(), Vec::new())
     } else {
         let f = fit(renderer, &inputs, &fit_options, &mut |_, _| {})?;
         (f.material, f.env, f.losses)
     };
-    let mut work = work;
     let mut normals = normals;
     let mut normal_losses = Vec::new();
+    let mut work_normals = work.normals.clone();
     if options.steps > 0 && options.normal_steps > 0 {
         let (refined, l) = refine_normals(renderer, &work, &material, &env, options)?;
         normal_losses = l;
         normals = upsample_normals(&refined, crop, mask, w, h);
-        work.normals = refined;
+        work_normals = refined;
     }
-    let judge = |m: &Material, e: &EnvMap| -> Result<f64> {
-        let img = render(renderer, &work.normals, e, m)?;
-        Ok(psnr(&img, &work.target, &work.mask))
-    };
-    let psnr_refined = judge(&material, &env)?;
+    let psnr_refined = judge(&work_normals, &material, &env)?;
     Ok(Decomposition {
         width: w,
         height: h,
