@@ -68,6 +68,8 @@ pub mod presets;
 pub mod reference;
 pub mod renderer;
 pub mod scene;
+#[cfg(feature = "serve")]
+pub mod serve;
 pub mod shapes;
 pub mod spline;
 pub mod splitmix;

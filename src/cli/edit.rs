@@ -178,20 +178,9 @@ pub fn run(args: &Args) -> Result<(), Failure> {
 /// opaque everywhere).
 pub(super) fn load_photo(path: &Path) -> Result<(Image, Option<Vec<bool>>), Failure> {
     let photo = io::load_image(path)?;
-    let mask = if Format::of(path) == Some(Format::Png) {
-        let d = io::png::decode(path)?;
-        let max = d.max_value();
-        let alpha: Vec<bool> = match d.channels {
-            2 | 4 => d
-                .samples
-                .chunks_exact(d.channels)
-                .map(|p| f64::from(p[d.channels - 1]) > max / 2.0)
-                .collect(),
-            _ => Vec::new(),
-        };
-        (!alpha.is_empty() && alpha.iter().any(|&a| !a)).then_some(alpha)
-    } else {
-        None
+    let mask = match Format::of(path) {
+        Some(Format::Png) => io::png_alpha_mask(path, &io::read_bytes(path)?)?,
+        _ => None,
     };
     photo::check_photo(&photo)
         .map_err(|e| Failure::from(matedit::Error::file(path, e.to_string())))?;

@@ -13,6 +13,8 @@ mod info;
 mod normals;
 mod presets;
 mod render;
+#[cfg(feature = "serve")]
+mod serve;
 mod shared;
 mod synth;
 mod transfer;
@@ -31,6 +33,7 @@ Examples:
   matedit normals --shape blobby --seed 7 -o blob.png   (a normal map from a shape or mesh)
   matedit synth spec.json -o dataset/                (a dataset of rendered samples)
   matedit edit photo.jpg --material gold -o out/     (the object in a photo, made of gold)
+  matedit serve                                      (the editor in a browser, on loopback)
 
 Run `matedit help COMMAND` for a command's options and examples.";
 
@@ -70,6 +73,10 @@ enum Command {
     /// The object in a photo made of another material: predicted, refined, composited.
     #[command(after_help = edit::EXAMPLES)]
     Edit(edit::Args),
+    /// The material editor as a local web page: drop a photo, pick materials, turn the light.
+    #[cfg(feature = "serve")]
+    #[command(after_help = serve::EXAMPLES)]
+    Serve(serve::Args),
     /// Every fit's shape and light with every fit's material, as one picture.
     #[command(after_help = grid::EXAMPLES)]
     Grid(grid::Args),
@@ -96,6 +103,8 @@ impl Cli {
             Command::Fit(args) => fit::run(args),
             Command::Transfer(args) => transfer::run(args),
             Command::Edit(args) => edit::run(args),
+            #[cfg(feature = "serve")]
+            Command::Serve(args) => serve::run(args),
             Command::Grid(args) => grid::run(args),
             Command::Synth(args) => synth::run(args),
             Command::Normals(args) => normals::run(args),

@@ -172,6 +172,31 @@ pub fn decompose(
     mask: Option<&[bool]>,
     options: &PhotoOptions,
 ) -> Result<Decomposition> {
+    decompose_with(renderer, nets, photo, mask, options, &mut |_| {})
+}
+
+/// A stage of [`decompose_with`], for a progress display.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stage {
+    /// Finding the object: pass `pass` of `passes` of the normals net on the whole photo.
+    Mask { pass: usize, passes: usize },
+    /// The nets on the crop around the object.
+    Predict,
+    /// Refining material and light: `step` of `steps` done.
+    Refine { step: usize, steps: usize },
+    /// Refining the normals: `step` of `steps` done.
+    Normals { step: usize, steps: usize },
+}
+
+/// [`decompose`], calling `progress` as each stage starts and after each refinement step.
+pub fn decompose_with(
+    renderer: &Renderer,
+    nets: &Nets,
+    photo: &Image,
+    mask: Option<&[bool]>,
+    options: &PhotoOptions,
+    progress: &mut dyn FnMut(Stage),
+) -> Result<Decomposition> {
     check_photo(photo)?;
     let (w, h) = (photo.width, photo.height);
     let n = options.net_size;
@@ -190,15 +215,18 @@ pub fn decompose(
                 size: w.max(h),
             };
             let input = crop_image(photo, whole, n);
+            let passes = MASK_PASSES + 1;
+            progress(Stage::Mask { pass: 1, passes });
             let mut prob = nets.predict(&input, None)?.mask_prob;
             // the nets were trained on images normalised by the object's mean, and the first
             // pass can only normalise by the whole image's: normalise by the mask found
             // and find it again, a few times
-            for _ in 0..MASK_PASSES {
+            for pass in 2..=passes {
                 let m: Vec<bool> = prob.iter().map(|&a| a > 0.5).collect();
                 if !m.iter().any(|&x| x) {
                     break;
                 }
+                progress(Stage::Mask { pass, passes });
                 prob = nets.predict(&input, Some(&m))?.mask_prob;
             }
             found = paste_scalar(&prob, n, whole, w, h)
@@ -211,6 +239,7 @@ pub fn decompose(
             &found
         }
     };
+    progress(Stage::Predict);
     let crop = crop_around(mask, w, h);
     let input = crop_image(photo, crop, n);
     let small_mask: Vec<bool> = crop_image(&mask_image(mask, w, h), crop, n)
@@ -245,14 +274,21 @@ pub fn decompose(
     let (material, env, losses) = if options.steps == 0 {
         (p.material.clone(), p.env.clone(), Vec::new())
     } else {
-        let f = fit(renderer, &inputs, &fit_options, &mut |_, _| {})?;
+        let steps = options.steps;
+        progress(Stage::Refine { step: 0, steps });
+        let f = fit(renderer, &inputs, &fit_options, &mut |step, _| {
+            progress(Stage::Refine {
+                step: (step + 1).min(steps),
+                steps,
+            })
+        })?;
         (f.material, f.env, f.losses)
     };
     let mut normals = normals;
     let mut normal_losses = Vec::new();
     let mut work_normals = work.normals.clone();
     if options.steps > 0 && options.normal_steps > 0 {
-        let (refined, l) = refine_normals(renderer, &work, &material, &env, options)?;
+        let (refined, l) = refine_normals(renderer, &work, &material, &env, options, progress)?;
         normal_losses = l;
         normals = upsample_normals(&refined, crop, mask, w, h);
         work_normals = refined;
@@ -290,6 +326,7 @@ fn refine_normals(
     material: &Material,
     env: &EnvMap,
     options: &PhotoOptions,
+    progress: &mut dyn FnMut(Stage),
 ) -> Result<(NormalMap, Vec<f64>)> {
     use super::adam::Adam;
     use super::loss::data_term;
@@ -333,7 +370,11 @@ fn refine_normals(
         normals: true,
         ctrl: false,
     };
-    for _ in 0..options.normal_steps {
+    for step in 0..options.normal_steps {
+        progress(Stage::Normals {
+            step,
+            steps: options.normal_steps,
+        });
         let batch = Batch::single(Scene {
             normals: current.clone(),
             env: env.clone(),
@@ -381,7 +422,22 @@ fn refine_normals(
 /// The object of `d` rendered with `material` under the refined light, at the photo's
 /// pixels (black off the crop).
 pub fn render_object(renderer: &Renderer, d: &Decomposition, material: &Material) -> Result<Image> {
-    let img = render(renderer, &d.normals, &d.env, material)?;
+    render_object_under(renderer, d, material, &d.env)
+}
+
+/// [`render_object`] under the light `env` (the refined light turned or exposed, say).
+pub fn render_object_under(
+    renderer: &Renderer,
+    d: &Decomposition,
+    material: &Material,
+    env: &EnvMap,
+) -> Result<Image> {
+    let img = render(renderer, &d.normals, env, material)?;
+    Ok(place(d, &img))
+}
+
+/// An image of the crop of `d` (as its normals) at the photo's pixels, black off the crop.
+pub fn place(d: &Decomposition, img: &Image) -> Image {
     let mut out = Image::zeros(d.width, d.height);
     for (i, p) in img.pixels.iter().enumerate() {
         let (x, y) = (
@@ -392,7 +448,7 @@ pub fn render_object(renderer: &Renderer, d: &Decomposition, material: &Material
             out.pixels[y as usize * d.width + x as usize] = *p;
         }
     }
-    Ok(out)
+    out
 }
 
 /// The square of `image` (the photo's size) that the nets saw, black past its edges.

@@ -233,6 +233,15 @@ fn check_size(path: &Path, header: &exr::meta::header::Header, file_len: usize) 
     Ok(())
 }
 
+/// The first layer's width and height, from the headers alone.
+pub fn dimensions(path: &Path, bytes: &[u8]) -> Result<(usize, usize)> {
+    let (_, layers) = headers(path, bytes)?;
+    layers
+        .first()
+        .map(|l| (l.width, l.height))
+        .ok_or_else(|| Error::file(path, "the EXR file has no layers"))
+}
+
 /// [`read_rgb`] on a file's bytes; `path` names the file in errors.
 pub fn decode_rgb(path: &Path, bytes: &[u8]) -> Result<Raster> {
     let (meta, layers) = headers(path, bytes)?;

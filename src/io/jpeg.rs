@@ -14,6 +14,17 @@ use crate::io::source::MAX_IMAGE_SIDE;
 /// A decoded JPEG: width, height and 8-bit RGB samples, row-major, row 0 at the top.
 pub type Rgb8 = (usize, usize, Vec<u8>);
 
+/// A JPEG's width and height, from its headers alone.
+pub fn dimensions(path: &Path, bytes: &[u8]) -> Result<(usize, usize)> {
+    let mut decoder = JpegDecoder::new(ZCursor::new(bytes));
+    decoder
+        .decode_headers()
+        .map_err(|e| Error::file(path, format!("not a readable JPEG: {e}")))?;
+    decoder
+        .dimensions()
+        .ok_or_else(|| Error::file(path, "not a readable JPEG: no header"))
+}
+
 /// Decodes a JPEG file's bytes to 8-bit RGB; `path` names the file in errors.
 pub fn decode_bytes(path: &Path, bytes: &[u8]) -> Result<Rgb8> {
     let options = DecoderOptions::default()

@@ -112,7 +112,7 @@ pub fn format_of(path: &Path, what: &str, allowed: &[Format]) -> Result<Format> 
 }
 
 /// Reads a whole file, with an error that says plainly what is wrong.
-pub(crate) fn read_bytes(path: &Path) -> Result<Vec<u8>> {
+pub fn read_bytes(path: &Path) -> Result<Vec<u8>> {
     if path.is_dir() {
         return Err(Error::file(path, "is a folder, not a file"));
     }
@@ -294,6 +294,44 @@ pub fn env_from_bytes(path: &Path, bytes: &[u8], convention: Convention) -> Resu
 /// (8 or 16 bits) or JPEG, both sRGB-decoded to linear (grey is replicated, alpha ignored).
 pub fn load_image(path: &Path) -> Result<Image> {
     image_from_bytes(path, &read_as(path, "an image", PHOTOS)?)
+}
+
+/// The width and height of a photo's bytes (JPEG, PNG or EXR, which `path`'s extension
+/// says), read from its headers without decoding its pixels: a size check before the cost.
+pub fn image_dimensions(path: &Path, bytes: &[u8]) -> Result<(usize, usize)> {
+    match format_of(path, "an image", &[Format::Png, Format::Jpeg, Format::Exr])? {
+        Format::Png => {
+            const SIGNATURE: &[u8] = b"\x89PNG\r\n\x1a\n";
+            if bytes.len() < 24 || &bytes[..8] != SIGNATURE || &bytes[12..16] != b"IHDR" {
+                return Err(Error::file(path, "not a readable PNG: no IHDR header"));
+            }
+            let be =
+                |i: usize| u32::from_be_bytes([bytes[i], bytes[i + 1], bytes[i + 2], bytes[i + 3]]);
+            Ok((be(16) as usize, be(20) as usize))
+        }
+        Format::Jpeg => jpeg::dimensions(path, bytes),
+        _ => exr::dimensions(path, bytes),
+    }
+}
+
+/// A PNG's alpha as the object's mask (a pixel counts above half the largest sample), where
+/// it has alpha that is not opaque everywhere; None for other formats (by `path`'s
+/// extension) and PNGs without transparency.
+pub fn png_alpha_mask(path: &Path, bytes: &[u8]) -> Result<Option<Vec<bool>>> {
+    if Format::of(path) != Some(Format::Png) {
+        return Ok(None);
+    }
+    let d = png::decode_bytes(path, bytes)?;
+    if d.channels != 2 && d.channels != 4 {
+        return Ok(None);
+    }
+    let max = d.max_value();
+    let alpha: Vec<bool> = d
+        .samples
+        .chunks_exact(d.channels)
+        .map(|p| f64::from(p[d.channels - 1]) > max / 2.0)
+        .collect();
+    Ok(alpha.iter().any(|&a| !a).then_some(alpha))
 }
 
 /// [`load_image`] on a file's bytes: `path` names the file in errors and its extension
