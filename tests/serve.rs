@@ -3,102 +3,16 @@
 //! message, 413 past the limits), two clients at once, and 20 concurrent previews.
 #![cfg(feature = "serve")]
 
-use std::io::{Read, Write};
-use std::net::{SocketAddr, TcpStream};
-use std::time::{Duration, Instant};
+#[path = "http/mod.rs"]
+mod http;
+
+use std::net::SocketAddr;
+use std::time::Instant;
+
+use http::{Reply, post_edit, request};
 
 use matedit::serve::{self, Config};
 use matedit::{Batch, Camera, Convention, Device, Image, NormalMap, Renderer, Scene};
-
-struct Reply {
-    status: u16,
-    headers: Vec<(String, String)>,
-    body: Vec<u8>,
-}
-
-impl Reply {
-    fn header(&self, name: &str) -> Option<&str> {
-        self.headers
-            .iter()
-            .find(|(k, _)| k.eq_ignore_ascii_case(name))
-            .map(|(_, v)| v.as_str())
-    }
-    fn text(&self) -> String {
-        String::from_utf8_lossy(&self.body).into_owned()
-    }
-    fn json(&self) -> serde_json::Value {
-        serde_json::from_slice(&self.body)
-            .unwrap_or_else(|e| panic!("not JSON ({e}): {}", self.text()))
-    }
-}
-
-/// One HTTP/1.1 request on a fresh connection, read to its end (chunked bodies decoded).
-fn request(
-    addr: SocketAddr,
-    method: &str,
-    path: &str,
-    extra: &[(&str, &str)],
-    body: &[u8],
-) -> Reply {
-    let mut s = TcpStream::connect(addr).expect("connects");
-    s.set_read_timeout(Some(Duration::from_secs(300))).unwrap();
-    let mut head = format!(
-        "{method} {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\nContent-Length: {}\r\n",
-        body.len()
-    );
-    for (k, v) in extra {
-        head.push_str(&format!("{k}: {v}\r\n"));
-    }
-    head.push_str("\r\n");
-    s.write_all(head.as_bytes()).unwrap();
-    // a server may answer (413) before reading a large body and close: ignore write errors
-    let _ = s.write_all(body);
-    let mut raw = Vec::new();
-    let _ = s.read_to_end(&mut raw);
-    let end = raw
-        .windows(4)
-        .position(|w| w == b"\r\n\r\n")
-        .unwrap_or_else(|| panic!("no response head: {:?}", String::from_utf8_lossy(&raw)));
-    let head = String::from_utf8_lossy(&raw[..end]).into_owned();
-    let mut lines = head.lines();
-    let status: u16 = lines
-        .next()
-        .unwrap()
-        .split(' ')
-        .nth(1)
-        .unwrap()
-        .parse()
-        .unwrap();
-    let headers: Vec<(String, String)> = lines
-        .filter_map(|l| l.split_once(':'))
-        .map(|(k, v)| (k.trim().to_string(), v.trim().to_string()))
-        .collect();
-    let mut body = raw[end + 4..].to_vec();
-    if headers
-        .iter()
-        .any(|(k, v)| k.eq_ignore_ascii_case("transfer-encoding") && v.contains("chunked"))
-    {
-        body = dechunk(&body);
-    }
-    Reply {
-        status,
-        headers,
-        body,
-    }
-}
-
-fn dechunk(mut b: &[u8]) -> Vec<u8> {
-    let mut out = Vec::new();
-    while let Some(i) = b.windows(2).position(|w| w == b"\r\n") {
-        let size = usize::from_str_radix(String::from_utf8_lossy(&b[..i]).trim(), 16).unwrap_or(0);
-        if size == 0 || b.len() < i + 2 + size {
-            break;
-        }
-        out.extend_from_slice(&b[i + 2..i + 2 + size]);
-        b = &b[(i + 4 + size).min(b.len())..];
-    }
-    out
-}
 
 fn start(config: Config) -> serve::Handle {
     serve::start(config, "127.0.0.1:0").expect("the server starts")
@@ -491,7 +405,7 @@ fn bad_requests_get_a_4xx_with_a_message() {
         404,
         "no file",
     );
-    // a black photo: its job fails with a message (the nets find nothing, or only black)
+    // a black photo: its job fails with a message
     let blank = {
         let mut b = Vec::new();
         let mut e = png::Encoder::new(&mut b, 64, 64);
@@ -504,7 +418,10 @@ fn bad_requests_get_a_4xx_with_a_message() {
     };
     let (id, events, text) = upload_and_wait(server.addr, &blank);
     assert_eq!(events.last().map(String::as_str), Some("failed"), "{text}");
-    assert!(text.contains(r#"{"error":"sphere.png: image: "#), "{text}");
+    assert!(
+        text.contains(r#"{"error":"sphere.png: image: no object found"#),
+        "{text}"
+    );
     check(
         request(
             server.addr,
@@ -514,7 +431,7 @@ fn bad_requests_get_a_4xx_with_a_message() {
             b"",
         ),
         409,
-        "sphere.png: image: ",
+        "sphere.png: image: no object found",
     );
 }
 
@@ -586,13 +503,7 @@ fn twenty_concurrent_previews() {
                     r#"{{"material": "gold-metallic-paint3", "preview": true, "turn": {}}}"#,
                     i * 9
                 );
-                let r = request(
-                    addr,
-                    "POST",
-                    &format!("/api/photos/{id}/edit"),
-                    &[],
-                    body.as_bytes(),
-                );
+                let r = post_edit(addr, &id, &body);
                 (r.status, decode_png(&r.body).0, t.elapsed().as_secs_f64())
             })
         })

@@ -233,9 +233,16 @@ pub fn decompose_with(
                 .iter()
                 .map(|&a| a > 0.5)
                 .collect::<Vec<_>>();
-            check_mask(&found, w, h).map_err(|_| {
-                invalid!("image: no object found (the nets' mask is empty, full or a speck); give one with --mask")
-            })?;
+            let lit = found
+                .iter()
+                .zip(&photo.pixels)
+                .any(|(&m, p)| m && p.iter().any(|&v| v > 0.0));
+            check_mask(&found, w, h)
+                .ok()
+                .filter(|_| lit)
+                .ok_or_else(|| {
+                    invalid!("image: no object found (the nets' mask is empty, full, a speck or black); give one with --mask")
+                })?;
             &found
         }
     };
