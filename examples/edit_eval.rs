@@ -1,7 +1,7 @@
 //! The quality of `matedit edit` on a held-out `matedit synth` folder (docs/edit.md).
 //!
 //!     cargo run --release --example edit_eval -- DATA [--limit N] [--steps K]
-//!         [--normal-steps J] [--weights W]
+//!         [--normal-steps J] [--normal-smoothness S] [--normal-anchor A] [--weights W]
 //!
 //! For each sample: the photo I (image.npy) with its true mask is decomposed by the nets (the
 //! built-in ones, or W) and refined with K steps (default 150); O' is the object rendered
@@ -108,9 +108,16 @@ fn main() {
     let samples = read(&data, limit);
     let n = samples.len();
     let normal_steps: usize = flag("--normal-steps").map_or(0, |v| v.parse().unwrap());
+    let defaults = PhotoOptions::default();
+    let normal_smoothness: f64 =
+        flag("--normal-smoothness").map_or(defaults.normal_smoothness, |v| v.parse().unwrap());
+    let normal_anchor: f64 =
+        flag("--normal-anchor").map_or(defaults.normal_anchor, |v| v.parse().unwrap());
     let options = |steps| PhotoOptions {
         steps,
         normal_steps,
+        normal_smoothness,
+        normal_anchor,
         ..PhotoOptions::default()
     };
     let t = Instant::now();
@@ -158,7 +165,7 @@ fn main() {
         v[n / 2]
     };
     println!(
-        "{n} samples of {}, {steps} refinement steps, {normal_steps} of the normals",
+        "{n} samples of {}, {steps} refinement steps, {normal_steps} of the normals (smoothness {normal_smoothness}, anchor {normal_anchor})",
         data.display()
     );
     println!(

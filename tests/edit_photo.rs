@@ -106,7 +106,13 @@ fn a_photo_edited_with_a_preset_a_file_and_another_photo() {
     let r = report(&out);
     assert_eq!(r["size"], serde_json::json!([96, 96]));
     assert_eq!(r["steps"], 40);
-    assert_eq!(r["normal_steps"], 20);
+    // the normals' refinement takes steps that lower its loss, at most the 20 asked for
+    let taken = r["normal_steps"].as_u64().unwrap();
+    assert!((1..=20).contains(&taken), "{r}");
+    assert!(
+        r["normal_loss_last"].as_f64().unwrap() < r["normal_loss_first"].as_f64().unwrap(),
+        "{r}"
+    );
     // refinement lowers the loss and brings the re-rendered photo closer
     assert!(
         r["loss_last"].as_f64().unwrap() < r["loss_first"].as_f64().unwrap(),

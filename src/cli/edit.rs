@@ -140,7 +140,7 @@ pub fn run(args: &Args) -> Result<(), Failure> {
         "material": material.name,
         "like": args.like.as_ref().map(|p| p.display().to_string()),
         "steps": d.losses.len(),
-        "normal_steps": d.normal_losses.len(),
+        "normal_steps": d.normal_losses.len().saturating_sub(1),
         "normal_loss_first": d.normal_losses.first(),
         "normal_loss_last": d.normal_losses.last(),
         "loss_first": d.losses.first(),

@@ -38,8 +38,11 @@ pub const MIN_OBJECT_PIXELS: usize = 16;
 /// Passes of the normals net that find the mask again on the image normalised by the
 /// mask of the pass before (see `decompose`).
 const MASK_PASSES: usize = 3;
-/// Adam's step on the normals' components (a unit vector's).
-const NORMAL_STEP: f64 = 0.01;
+/// The normals' refinement's first step moves the normal with the largest gradient by
+/// this many radians (about 3 degrees).
+const NORMAL_MOVE: f64 = 0.05;
+/// Halvings of a step that raised the loss before the normals' refinement ends.
+const NORMAL_HALVINGS: usize = 8;
 /// The margin of the nets' training images: the object fills the frame but this fraction
 /// of the half-size on each side (`matedit normals --margin`).
 const MARGIN: f64 = 0.05;
@@ -55,6 +58,9 @@ pub struct PhotoOptions {
     /// Weight of the normals' smoothness prior (the mean squared difference between
     /// neighbouring normals on the object).
     pub normal_smoothness: f64,
+    /// Weight of the normals' anchor to the nets' (the mean squared difference between a
+    /// refined normal and the predicted one over the object).
+    pub normal_anchor: f64,
     /// The refinement runs on the crop box-filtered to at most this many pixels a side.
     pub work_size: usize,
     /// The nets' input size (square; a multiple of 2^(levels - 1)).
@@ -67,6 +73,7 @@ impl Default for PhotoOptions {
             steps: 150,
             normal_steps: 0,
             normal_smoothness: 0.05,
+            normal_anchor: 0.0,
             work_size: 128,
             net_size: 64,
         }
@@ -115,7 +122,8 @@ pub struct Decomposition {
     pub psnr_refined: f64,
     /// The refinement's loss per step (material and light).
     pub losses: Vec<f64>,
-    /// The normals' refinement's loss per step (data term and smoothness prior).
+    /// The normals' refinement's loss (data term and smoothness prior) at its start and
+    /// after each step taken (empty without it).
     pub normal_losses: Vec<f64>,
     /// Seconds per stage: "predict", "refine".
     pub stages: Vec<(&'static str, f64)>,
@@ -323,10 +331,15 @@ pub fn decompose_with(
     })
 }
 
-/// The normals of `work` refined with the material and light fixed: Adam on each object
-/// pixel's normal, renormalised (and kept facing the camera) after each step, on the fit's
-/// data term plus `normal_smoothness` times the mean squared difference between
-/// neighbouring normals on the object. Returns the best normals seen and the loss per step.
+/// The normals of `work` refined with the material and light fixed, on the fit's data term
+/// plus `normal_smoothness` times the mean squared difference between neighbouring normals
+/// on the object and `normal_anchor` times the mean squared difference from `work`'s: projected gradient descent with a backtracking line search. Each step
+/// moves every object pixel's normal against its gradient's part tangent to the sphere,
+/// renormalises it (kept facing the camera), and is taken only if the loss falls; the step
+/// length starts where the largest move is [`NORMAL_MOVE`] radians, halves on a rise (up to
+/// [`NORMAL_HALVINGS`] times, then the refinement ends) and grows by half after a success.
+/// The loss never rises: the normals returned are the last taken, with the loss of the
+/// start and after each step taken.
 fn refine_normals(
     renderer: &Renderer,
     work: &Inputs,
@@ -335,7 +348,6 @@ fn refine_normals(
     options: &PhotoOptions,
     progress: &mut dyn FnMut(Stage),
 ) -> Result<(NormalMap, Vec<f64>)> {
-    use super::adam::Adam;
     use super::loss::data_term;
     let (w, h) = (work.normals.width, work.normals.height);
     let on: Vec<usize> = (0..w * h).filter(|&i| work.mask[i]).collect();
@@ -350,7 +362,7 @@ fn refine_normals(
         })
         .sum::<f64>()
         / n;
-    if c <= 0.0 {
+    if c <= 0.0 || on.is_empty() {
         return Ok((work.normals.clone(), Vec::new()));
     }
     // neighbouring pairs on the object, right and down
@@ -364,66 +376,114 @@ fn refine_normals(
         }
     }
     let lambda = options.normal_smoothness / pairs.len().max(1) as f64;
-    let mut x: Vec<f64> = on
-        .iter()
-        .flat_map(|&i| work.normals.normals[i].map(f64::from))
-        .collect();
-    let mut adam = Adam::new(x.len());
-    let lr = vec![NORMAL_STEP; x.len()];
-    let mut current = work.normals.clone();
-    let (mut best, mut best_normals, mut losses) = (f64::INFINITY, current.clone(), Vec::new());
+    let mu = options.normal_anchor / on.len() as f64;
+    let start = &work.normals;
+    let sq = |a: [f32; 3], b: [f32; 3]| (0..3).map(|k| f64::from(a[k] - b[k]).powi(2)).sum::<f64>();
+    let smoothness = |m: &NormalMap| -> f64 {
+        lambda
+            * pairs
+                .iter()
+                .map(|&(a, b)| sq(m.normals[a], m.normals[b]))
+                .sum::<f64>()
+            + mu * on
+                .iter()
+                .map(|&i| sq(m.normals[i], start.normals[i]))
+                .sum::<f64>()
+    };
+    let scene = |m: &NormalMap| {
+        Batch::single(Scene {
+            normals: m.clone(),
+            env: env.clone(),
+            material: material.clone(),
+            camera: Camera::Orthographic,
+        })
+    };
+    let loss_of = |m: &NormalMap| -> Result<f64> {
+        let img = renderer.render(&scene(m)?)?.remove(0);
+        Ok(data_term(&img, work, c, n).0 + smoothness(m))
+    };
     let wanted = crate::Wanted {
         env: false,
         normals: true,
         ctrl: false,
     };
-    for step in 0..options.normal_steps {
+    // dLoss/dn at the object's pixels, tangent to the sphere at each normal
+    let gradient = |m: &NormalMap| -> Result<Vec<[f64; 3]>> {
+        let batch = scene(m)?;
+        let img = renderer.render(&batch)?.remove(0);
+        let (_, up) = data_term(&img, work, c, n);
+        let (mut grads, _) =
+            renderer.backward_wanted_with(&batch, &[up], &crate::Accuracy::Exact, wanted)?;
+        let d_n = grads.remove(0).d_normals;
+        let mut g: Vec<[f64; 3]> = vec![[0.0; 3]; w * h];
+        for &i in &on {
+            g[i] = d_n[i].map(f64::from);
+        }
+        for &(a, b) in &pairs {
+            for k in 0..3 {
+                let d = 2.0 * lambda * f64::from(m.normals[a][k] - m.normals[b][k]);
+                g[a][k] += d;
+                g[b][k] -= d;
+            }
+        }
+        for &i in &on {
+            for k in 0..3 {
+                g[i][k] += 2.0 * mu * f64::from(m.normals[i][k] - start.normals[i][k]);
+            }
+        }
+        for &i in &on {
+            let nv = m.normals[i].map(f64::from);
+            let along = (0..3).map(|k| g[i][k] * nv[k]).sum::<f64>();
+            for k in 0..3 {
+                g[i][k] -= along * nv[k];
+            }
+        }
+        Ok(g)
+    };
+    let moved = |m: &NormalMap, g: &[[f64; 3]], alpha: f64| -> NormalMap {
+        let mut out = m.clone();
+        for &i in &on {
+            let mut v: [f64; 3] =
+                std::array::from_fn(|k| f64::from(m.normals[i][k]) - alpha * g[i][k]);
+            v[2] = v[2].max(0.02);
+            let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+            out.normals[i] = v.map(|x| (x / len) as f32);
+        }
+        out
+    };
+    let mut current = work.normals.clone();
+    let mut loss = loss_of(&current)?;
+    let mut losses = vec![loss];
+    let mut g = gradient(&current)?;
+    let largest = |g: &[[f64; 3]]| {
+        on.iter()
+            .map(|&i| (g[i][0] * g[i][0] + g[i][1] * g[i][1] + g[i][2] * g[i][2]).sqrt())
+            .fold(0.0, f64::max)
+    };
+    let mut alpha = NORMAL_MOVE / largest(&g).max(1e-30);
+    'steps: for step in 0..options.normal_steps {
         progress(Stage::Normals {
             step,
             steps: options.normal_steps,
         });
-        let batch = Batch::single(Scene {
-            normals: current.clone(),
-            env: env.clone(),
-            material: material.clone(),
-            camera: Camera::Orthographic,
-        })?;
-        let img = renderer.render(&batch)?.remove(0);
-        let (mut loss, up) = data_term(&img, work, c, n);
-        let (mut grads, _) =
-            renderer.backward_wanted_with(&batch, &[up], &crate::Accuracy::Exact, wanted)?;
-        let d_n = grads.remove(0).d_normals;
-        let slot = |i: usize| on.binary_search(&i).unwrap_or(0);
-        let mut g: Vec<f64> = on.iter().flat_map(|&i| d_n[i].map(f64::from)).collect();
-        for &(a, b) in &pairs {
-            let (sa, sb) = (slot(a), slot(b));
-            for k in 0..3 {
-                let d = x[3 * sa + k] - x[3 * sb + k];
-                loss += lambda * d * d;
-                g[3 * sa + k] += 2.0 * lambda * d;
-                g[3 * sb + k] -= 2.0 * lambda * d;
+        for _ in 0..=NORMAL_HALVINGS {
+            let trial = moved(&current, &g, alpha);
+            let l = loss_of(&trial)?;
+            if l.is_finite() && l < loss {
+                (current, loss) = (trial, l);
+                losses.push(loss);
+                g = gradient(&current)?;
+                if g.iter().flatten().any(|v| !v.is_finite()) {
+                    break 'steps;
+                }
+                alpha *= 1.5;
+                continue 'steps;
             }
+            alpha /= 2.0;
         }
-        if !loss.is_finite() || g.iter().any(|v| !v.is_finite()) {
-            break;
-        }
-        losses.push(loss);
-        if loss < best {
-            best = loss;
-            best_normals = current.clone();
-        }
-        adam.step(&mut x, &g, &lr);
-        for (s, &i) in on.iter().enumerate() {
-            let v = &mut x[3 * s..3 * s + 3];
-            v[2] = v[2].max(0.02);
-            let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-            for k in 0..3 {
-                v[k] /= len;
-            }
-            current.normals[i] = [v[0] as f32, v[1] as f32, v[2] as f32];
-        }
+        break;
     }
-    Ok((best_normals, losses))
+    Ok((current, losses))
 }
 
 /// The object of `d` rendered with `material` under the refined light, at the photo's
