@@ -147,7 +147,7 @@ def _photo(name: str, a) -> np.ndarray:
     return a
 
 
-def edit(photo, material=None, *, like=None, mask=None, like_mask=None, steps=150, weights=None, device="auto") -> dict:
+def edit(photo, material=None, *, like=None, mask=None, like_mask=None, steps=20, weights=None, device="auto") -> dict:
     """The object in `photo` made of another material, as `matedit edit` does (docs/edit.md).
 
     photo: (H, W, 3), linear float32 or 8-bit sRGB (uint8). material: a preset name or

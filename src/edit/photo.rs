@@ -70,7 +70,7 @@ pub struct PhotoOptions {
 impl Default for PhotoOptions {
     fn default() -> Self {
         PhotoOptions {
-            steps: 150,
+            steps: 20,
             normal_steps: 0,
             normal_smoothness: 0.05,
             normal_anchor: 0.0,
