@@ -9,8 +9,9 @@
 //! O = R(n, m_t, L) is the true edit. Printed, as means over the samples (PSNR over the
 //! object, peak = O's maximum there): O' from the predictions alone, O' after refinement,
 //! I itself (the edit left undone), and O' with m_t taken from the next sample's photo,
-//! decomposed and refined like the first (`--like`); and I' against I before and after
-//! refinement.
+//! decomposed and refined like the first (`--like`); O' after refinement times the ratio
+//! of the photo's luminance to I''s (clamped to [1/4, 4]), and its square root (the photo's
+//! detail carried over); and I' against I before and after refinement.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -134,7 +135,7 @@ fn main() {
         })
         .collect();
     let refine_s = t.elapsed().as_secs_f64() / n as f64;
-    let (mut rows, mut i_pred, mut i_ref) = (vec![[0.0f64; 4]; n], 0.0, 0.0);
+    let (mut rows, mut i_pred, mut i_ref) = (vec![[0.0f64; 6]; n], 0.0, 0.0);
     for (i, s) in samples.iter().enumerate() {
         let next = (i + 1) % n;
         let m_t = &samples[next].material;
@@ -149,11 +150,27 @@ fn main() {
         let o_pred = photo::render_object(&renderer, &predicted[i], m_t).unwrap();
         let o_ref = photo::render_object(&renderer, &refined[i], m_t).unwrap();
         let o_like = photo::render_object(&renderer, &refined[i], &refined[next].material).unwrap();
+        let i_ref_img = photo::render_object(&renderer, &refined[i], &refined[i].material).unwrap();
+        // the photo's detail carried over: O' times (lum I / lum I')^power on the object
+        let detail = |o_new: &Image, power: f32| -> Image {
+            let mut out = o_new.clone();
+            for (j, p) in out.pixels.iter_mut().enumerate() {
+                let (a, b) = (s.image.pixels[j], i_ref_img.pixels[j]);
+                let (la, lb) = (a[0] + a[1] + a[2], b[0] + b[1] + b[2]);
+                if s.mask[j] && lb > 1e-6 {
+                    let r = (la / lb).clamp(0.25, 4.0).powf(power);
+                    *p = p.map(|v| v * r);
+                }
+            }
+            out
+        };
         rows[i] = [
             psnr(&o_pred, &o, &s.mask),
             psnr(&o_ref, &o, &s.mask),
             psnr(&s.image, &o, &s.mask),
             psnr(&o_like, &o, &s.mask),
+            psnr(&detail(&o_ref, 1.0), &o, &s.mask),
+            psnr(&detail(&o_ref, 0.5), &o, &s.mask),
         ];
         i_pred += refined[i].psnr_predicted / n as f64;
         i_ref += refined[i].psnr_refined / n as f64;
@@ -177,6 +194,8 @@ fn main() {
         "O' after refinement",
         "I (the edit left undone)",
         "O' with m_t from the next photo (--like)",
+        "O' refined x (lum I / lum I')",
+        "O' refined x (lum I / lum I')^0.5",
     ]
     .iter()
     .enumerate()
