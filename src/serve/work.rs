@@ -5,7 +5,6 @@
 use std::path::Path;
 
 use crate::edit::photo::{self, Crop, Decomposition, PhotoOptions, Stage};
-use crate::edit::transfer::resize;
 use crate::error::{Error, Result};
 use crate::io::png::{Preview, Tonemap};
 use crate::nets::Nets;
@@ -257,7 +256,8 @@ pub fn sphere_png(renderer: &Renderer, material: &Material) -> Result<Vec<u8>> {
     crate::io::png::encode_preview(&image, &Preview::default())
 }
 
-/// A light as a 256 x 128 lat-long picture, exposed for its mean and Reinhard-mapped.
+/// A light as a 256 x 128 lat-long picture (bilinear between texels), exposed for its mean
+/// and Reinhard-mapped.
 fn light_png(env: &EnvMap) -> Result<Vec<u8>> {
     let n = env.texels.len().max(1) as f64;
     let mean = env
@@ -266,12 +266,25 @@ fn light_png(env: &EnvMap) -> Result<Vec<u8>> {
         .map(|t| f64::from(t[0] + t[1] + t[2]) / 3.0)
         .sum::<f64>()
         / n;
-    let image = Image {
-        width: env.width,
-        height: env.height,
-        pixels: env.texels.clone(),
-    };
-    let big = resize(&image, 256, 128);
+    // bilinear between texel centres, wrapping in longitude
+    let (w, h) = (env.width, env.height);
+    let mut big = Image::zeros(256, 128);
+    for y in 0..128 {
+        let v = ((y as f64 + 0.5) * h as f64 / 128.0 - 0.5).clamp(0.0, (h - 1) as f64);
+        let (y0, fy) = (v.floor() as usize, (v - v.floor()) as f32);
+        let y1 = (y0 + 1).min(h - 1);
+        for x in 0..256 {
+            let u = ((x as f64 + 0.5) * w as f64 / 256.0 - 0.5).rem_euclid(w as f64);
+            let (x0, fx) = (u.floor() as usize % w, (u - u.floor()) as f32);
+            let x1 = (x0 + 1) % w;
+            let t = |xx: usize, yy: usize| env.texels[yy * w + xx];
+            big.pixels[y * 256 + x] = std::array::from_fn(|k| {
+                let top = t(x0, y0)[k] * (1.0 - fx) + t(x1, y0)[k] * fx;
+                let bottom = t(x0, y1)[k] * (1.0 - fx) + t(x1, y1)[k] * fx;
+                top * (1.0 - fy) + bottom * fy
+            });
+        }
+    }
     let preview = Preview {
         exposure: if mean > 0.0 {
             (0.5 / mean).log2() as f32
