@@ -13,7 +13,11 @@ use matedit::cpu::FastCpu;
 use matedit::lod::{self, Method};
 
 /// The chooser on scenes of any size (by default small ones are rendered exactly).
-const ALWAYS: lod::Chooser = lod::Chooser { min_pairs: 0.0 };
+const ALWAYS: lod::Chooser = lod::Chooser {
+    min_pairs: 0.0,
+    safety: lod::SAFETY,
+    safety_sums: lod::SAFETY_SUMS,
+};
 use matedit::reference::Reference;
 use matedit::{
     Backend, Batch, Camera, Convention, EnvMap, Gradients, Image, Material, NormalMap, Renderer,

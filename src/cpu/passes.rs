@@ -128,9 +128,12 @@ impl FastCpu {
         } else {
             prep.lit.clone()
         };
-        // every gradient of an orthographic scene: the dense kernels, with every lobe where
-        // the material shares a little (see `Dense::for_backward`)
-        let dense = (self.dense && !perspective && wanted == Wanted::ALL)
+        // an orthographic scene: the dense kernels, with every lobe where the material
+        // shares a little (see `Dense::for_backward`), whichever gradients are wanted (they
+        // sum every gradient in registers at little more than the cost of one; measured on
+        // a nine-lobe material, dLoss/dn alone or dLoss/dL and dLoss/dctrl alone by the
+        // plan kernels took longer than all three by the dense ones)
+        let dense = (self.dense && !perspective)
             .then(|| Dense::for_backward(&plan, ctrl))
             .flatten();
         let columns = match &dense {
@@ -234,11 +237,13 @@ impl FastCpu {
         for (p, v) in prep.pixels.iter().zip(dn) {
             d_normals[p.index] = v.map(|x| x as f32);
         }
-        Gradients {
+        let mut grads = Gradients {
             d_env,
             d_normals,
             d_ctrl: d_ctrl.map(|x| x as f32),
-        }
+        };
+        grads.keep(wanted);
+        grads
     }
 }
 

@@ -5,20 +5,27 @@
 //! table's grid is the one the whole image gets, and only the nodes the sample's stencils
 //! need are evaluated. A candidate's estimated error is its largest error on the sample,
 //! relative to the sample's largest exact value (for the image and, when an upstream
-//! gradient is given, for each gradient). A candidate is taken when three times its
-//! estimate is within the tolerance: the factor covers the pixels the sample misses (in
-//! the benchmark the measured error was up to 5.8 times the estimate, 1.4 times at the
-//! median). Scenes of fewer than [`MIN_PAIRS`] pixel-light pairs are rendered exactly.
+//! gradient is given, for dLoss/dn). dLoss/dL and dLoss/dctrl are sums over pixels, judged
+//! on every pixel for a sample of the texels. A candidate is taken when each estimate
+//! times its safety factor ([`SAFETY`], [`SAFETY_SUMS`]; [`Chooser`] changes them) is
+//! within the tolerance: the factor covers what the samples miss. Scenes of fewer than
+//! [`MIN_PAIRS`] pixel-light pairs are rendered exactly.
 //!
 //! Candidates are tried in order of their predicted cost (pairs of a pixel and a lit light
 //! evaluated, counted from the scene), and only while they are cheaper than the best one
-//! found so far, so the estimate costs a few percent of an exact render:
+//! found so far and the trials' work (the exact layer on the samples included) stays within
+//! [`ESTIMATE_BUDGET`] of the exact layer's:
 //! - environment levels (blocks of 8, 4 and 2 texels a side) with 0, 16 or 64 texels
 //!   kept, evaluated per pixel (images only);
 //! - for orthographic cameras, normal tables of growing resolution over the cheapest of
-//!   those lights whose own error is within half the budget. After a table misses, the
-//!   next resolution tried is the one its error predicts (Catmull-Rom's error falls as the
-//!   cube of the node spacing).
+//!   those lights (with 16, 64, 256 or no texels kept) whose own error is within half the
+//!   budget. After a table misses, the next resolution tried is the one its error predicts
+//!   (Catmull-Rom's error falls as the cube of the node spacing); after one passes, the
+//!   next light starts a step below it; a resolution whose dLoss/dL missed is not tried
+//!   again with other kept texels (dLoss/dL does not depend on the radiance); a light
+//!   whose finer table missed by more than `FLOOR` of its last miss goes no finer.
+//!
+//! With `MATEDIT_LOD_TRACE` set, each trial's estimate and time go to stderr.
 
 use std::collections::HashMap;
 
@@ -26,14 +33,34 @@ use crate::Backend;
 use crate::envmap::EnvMap;
 use crate::error::{Error, Result};
 use crate::prepare::Prepared;
-use crate::scene::{Gradients, Image, Scene};
+use crate::scene::{Gradients, Image, Scene, Wanted};
 
 use super::plan::Plan;
 use super::table::{Grid, Table};
 use super::{Method, TABLE_SIZES};
 
-/// A taken candidate's estimate times this is within the tolerance.
+/// The gradients judged on the sampled pixels ...
+const NORMALS: Wanted = Wanted {
+    env: false,
+    normals: true,
+    ctrl: false,
+};
+/// ... and on the sampled texels.
+const SUMS: Wanted = Wanted {
+    env: true,
+    normals: false,
+    ctrl: true,
+};
+
+/// A taken candidate's estimate of the image and of dLoss/dn (judged on sampled pixels)
+/// times this is within the tolerance: the pixels the sample misses may be worse (in the
+/// benchmark the measured error was 1.4-1.8 times the estimate at the median, and up to 6
+/// times).
 pub const SAFETY: f64 = 3.0;
+/// The same for dLoss/dL and dLoss/dctrl, judged on every pixel and a sample of the
+/// texels: in the benchmark the measured error of dLoss/dL was 1.5 times the estimate at
+/// the median and up to 2.2 times; that of dLoss/dctrl at most 0.7 times.
+pub const SAFETY_SUMS: f64 = 3.0;
 /// Pixels sampled: 1 in this many ...
 const SAMPLE_EVERY: usize = 64;
 /// ... at least this many (or all) ...
@@ -45,26 +72,38 @@ const SAMPLE_TEXELS: usize = 128;
 /// Block sides tried, coarsest first.
 const ENV_FACTORS: [usize; 4] = [8, 4, 2, 1];
 /// Kept texels tried.
-const KEEPS: [usize; 3] = [0, 16, 64];
+const KEEPS: [usize; 4] = [0, 16, 64, 256];
+/// So many kept texels are tried with tables only (per pixel they cost too much).
+const TABLE_ONLY_KEEP: usize = 256;
 /// Kept texels for the tables, in the order tried.
-const KEEPS_FOR_TABLES: [usize; 3] = [16, 64, 0];
+const KEEPS_FOR_TABLES: [usize; 4] = [16, 64, 256, 0];
 /// An approximation is taken only if its predicted work is below this share of the exact
 /// layer's.
 const MAX_COST_SHARE: f64 = 0.5;
-/// The trials may spend this share of the exact layer's work.
-const ESTIMATE_BUDGET: f64 = 0.1;
+/// The trials may spend this share of the exact layer's work (counted in pairs; the exact
+/// layer on the samples included): what a scene that no approximation suits loses.
+pub const ESTIMATE_BUDGET: f64 = 0.15;
 /// Scenes of fewer pixel-light pairs are rendered exactly, unestimated (a 128 x 128
 /// sphere against a 64 x 128 map has 1.1e8).
 pub const MIN_PAIRS: f64 = 2e8;
+/// A table's miss at a finer size above this share of its last miss: no finer size tried.
+const FLOOR: f64 = 0.75;
 /// The first table resolution tried.
 const FIRST_TABLE: usize = 32;
 /// The cost of interpolating one pixel from a table, in pair evaluations.
 const INTERP_PAIRS: f64 = 4.0;
 /// The cost of a pair in the normals' Jacobian (a table's dLoss/dn), in forward pair
 /// evaluations.
-const JACOBIAN_PAIR: f64 = 1.5;
+const JACOBIAN_PAIR: f64 = 2.0;
 /// The cost of a pair in the backward pass, in forward pair evaluations.
 const BACKWARD_PAIR: f64 = 3.0;
+
+/// With `MATEDIT_LOD_TRACE` set, each trial's method, estimate and time go to stderr.
+fn trace(what: &str, start: std::time::Instant) {
+    if std::env::var_os("MATEDIT_LOD_TRACE").is_some() {
+        eprintln!("lod: {:8.1} ms {what}", start.elapsed().as_secs_f64() * 1e3);
+    }
+}
 
 /// Estimated errors of a method on a scene: max |x - x_exact| over max |x_exact| on the
 /// sampled pixels, per output.
@@ -89,6 +128,14 @@ impl Estimate {
             .into_iter()
             .flatten()
             .fold(self.image, f64::max)
+    }
+
+    /// The largest of the estimated errors, each times its safety factor: what must be
+    /// within the tolerance.
+    pub fn scaled(&self, chooser: &Chooser) -> f64 {
+        let pixels = self.d_normals.unwrap_or(0.0).max(self.image) * chooser.safety;
+        let sums = self.d_env.unwrap_or(0.0).max(self.d_ctrl.unwrap_or(0.0)) * chooser.safety_sums;
+        pixels.max(sums)
     }
 }
 
@@ -143,12 +190,18 @@ pub struct Chooser {
     /// Scenes of fewer pixel-light pairs are rendered exactly without an estimate, which
     /// would cost more than it could save ([`MIN_PAIRS`] by default; 0 always estimates).
     pub min_pairs: f64,
+    /// The safety factor of the estimates on sampled pixels ([`SAFETY`]).
+    pub safety: f64,
+    /// The safety factor of the estimates on sampled texels ([`SAFETY_SUMS`]).
+    pub safety_sums: f64,
 }
 
 impl Default for Chooser {
     fn default() -> Self {
         Chooser {
             min_pairs: MIN_PAIRS,
+            safety: SAFETY,
+            safety_sums: SAFETY_SUMS,
         }
     }
 }
@@ -302,10 +355,24 @@ impl<'a> Trial<'a> {
             });
             let exact = Plan::new(backend, &sample, &scene.env, &Method::EXACT, &full.pixels)?;
             let image = exact.forward(backend)?;
-            let grads = upstream
-                .as_ref()
-                .map(|u| exact.backward(backend, u))
-                .transpose()?;
+            // dLoss/dn from the exact Jacobians dI/dn (a forward pass in parallel chunks,
+            // where a backward pass of so few pixels is one chunk on one thread);
+            // dLoss/dL and dLoss/dctrl are judged on the texels' trial
+            let grads = match &upstream {
+                None => None,
+                Some(u) => {
+                    let jac = backend
+                        .normal_jacobians(std::slice::from_ref(&sample))?
+                        .remove(0);
+                    let mut g = Gradients::zeros(0, sample.pixels.len());
+                    for (px, j) in sample.pixels.iter().zip(jac) {
+                        let up = u.pixels[px.index];
+                        g.d_normals[px.index] =
+                            std::array::from_fn(|a| (0..3).map(|c| up[c] * j[c][a]).sum());
+                    }
+                    Some(g)
+                }
+            };
             Ok(Truth {
                 sample,
                 upstream,
@@ -353,6 +420,12 @@ impl<'a> Trial<'a> {
         )
     }
 
+    /// How many texels the gradients' trial runs on.
+    fn texel_count(&self) -> usize {
+        let env = &self.scene.env;
+        texel_mask(env).iter().filter(|&&m| m).count()
+    }
+
     /// The estimated error of `method`'s image alone, on the per-pixel sample.
     fn image_error(&self, method: &Method) -> Result<f64> {
         let image = self.plan_on(&self.pixels, method)?.forward(self.backend)?;
@@ -360,7 +433,7 @@ impl<'a> Trial<'a> {
     }
 
     /// The estimate of `method`; the gradients' only if the image's is within `tol`.
-    fn estimate(&self, method: &Method, tol: f64) -> Result<Estimate> {
+    fn estimate(&self, method: &Method, tol: f64, chooser: &Chooser) -> Result<Estimate> {
         let truth = if method.table.is_some() {
             &self.tables
         } else {
@@ -373,15 +446,15 @@ impl<'a> Trial<'a> {
             pixels: truth.sample.pixels.len(),
             ..Estimate::default()
         };
-        if e.image * SAFETY > tol {
+        if e.scaled(chooser) > tol {
             return Ok(e);
         }
         if let (Some(up), Some(sample_up), Some(exact)) =
             (self.upstream, &truth.upstream, &truth.grads)
         {
-            let g = plan.backward(self.backend, sample_up)?;
+            let g = plan.backward_wanted(self.backend, sample_up, NORMALS)?;
             e.d_normals = Some(rel(&g.d_normals, &exact.d_normals));
-            if e.max() * SAFETY > tol {
+            if e.scaled(chooser) > tol {
                 return Ok(e);
             }
             let env = &self.scene.env;
@@ -392,13 +465,13 @@ impl<'a> Trial<'a> {
                     let full = self.full;
                     let exact =
                         Plan::masked(self.backend, full, env, &Method::EXACT, &full.pixels, &mask)?;
-                    let grads = exact.backward(self.backend, up)?;
+                    let grads = exact.backward_wanted(self.backend, up, SUMS)?;
                     self.texels.get_or_init(|| TexelTruth { mask, grads })
                 }
             };
             let (mask, full) = (&texels.mask, self.full);
             let plan = Plan::masked(self.backend, full, env, method, &full.pixels, mask)?;
-            let g = plan.backward(self.backend, up)?;
+            let g = plan.backward_wanted(self.backend, up, SUMS)?;
             e.d_env = Some(rel_masked(&g.d_env, &texels.grads.d_env, mask));
             e.d_ctrl = Some(rel_ctrl(&g.d_ctrl, &texels.grads.d_ctrl));
         }
@@ -439,8 +512,16 @@ pub(crate) fn choose_plan<'a>(
         // the estimate would cost more than it could save
         return done(Method::EXACT, Estimate::default(), 1.0);
     }
+    if backward && !prep.camera.is_orthographic() {
+        // no candidate: tables need an orthographic camera, and environment levels are
+        // for images
+        return done(Method::EXACT, Estimate::default(), 1.0);
+    }
 
+    let t0 = std::time::Instant::now();
     let trial = Trial::new(backend, scene, prep, upstream)?;
+    trace("exact on the samples", t0);
+    let mut texels_charged = false;
 
     // the lights: lit blocks and lit kept texels per (block side, kept), counted
     // (blocks whose lit texels are all kept count as lit: a cost model)
@@ -481,14 +562,16 @@ pub(crate) fn choose_plan<'a>(
     let most = exact_cost * MAX_COST_SHARE;
     let mut light_error: HashMap<(usize, usize), f64> = HashMap::new();
     // what the trials may spend, in forward pair evaluations
-    let mut budget = exact_cost * ESTIMATE_BUDGET;
     let s_pixels = trial.pixels.sample.pixels.len() as f64;
     let s_tables = trial.tables.sample.pixels.len() as f64;
+    // less the exact layer on the samples
+    let mut budget = exact_cost * ESTIMATE_BUDGET
+        - (s_pixels + s_tables) * lit_total * (1.0 + if backward { BACKWARD_PAIR } else { 0.0 });
     let mut per_pixel: Vec<((usize, usize), f64)> = light_counts
         .iter()
         // blocks give each texel its block's dLoss/dL, shaped by the block's direction:
         // for gradients they were never close (errors of 0.1 and more in the benchmark)
-        .filter(|((f, _), _, _)| *f > 1 && !backward)
+        .filter(|((f, k), _, _)| *f > 1 && !backward && *k < TABLE_ONLY_KEEP)
         .map(|&(fk, b, k)| (fk, n * (b + k) * pair))
         .collect();
     per_pixel.sort_by(|a, b| a.1.total_cmp(&b.1));
@@ -502,9 +585,11 @@ pub(crate) fn choose_plan<'a>(
         }
         budget -= spend;
         let m = method(f, k, None);
-        let e = trial.estimate(&m, tol)?;
+        let t = std::time::Instant::now();
+        let e = trial.estimate(&m, tol, chooser)?;
+        trace(&format!("{m}: {e:?}"), t);
         light_error.insert((f, k), e.image);
-        if e.max() * SAFETY <= tol {
+        if e.scaled(chooser) <= tol {
             best = (m, e, cost);
             break;
         }
@@ -519,7 +604,32 @@ pub(crate) fn choose_plan<'a>(
         let keep_rank = |k: usize| KEEPS_FOR_TABLES.iter().position(|&x| x == k);
         table_lights.sort_by_key(|&((f, k), _, _)| (f, keep_rank(k)));
         let mut passed_at = None;
+        // dLoss/dL's estimated error per (block side, table size): it does not depend on
+        // the radiance, so texels kept or not change it only where they are exact
+        let mut env_errors: HashMap<(usize, usize), f64> = HashMap::new();
+        let node_pair = if backward {
+            BACKWARD_PAIR + JACOBIAN_PAIR
+        } else {
+            1.0
+        };
+        // a table's predicted work over a light of `blocks` blocks and `kept` texels (its
+        // nodes counted once per size)
+        let counts: std::cell::RefCell<HashMap<usize, (usize, usize)>> = Default::default();
+        let table_cost = |r: usize, blocks: f64, kept: f64| {
+            let (nodes, left) = *counts.borrow_mut().entry(r).or_insert_with(|| {
+                let grid = Grid::new(r, &prep.pixels);
+                Table::count(&grid, &prep.pixels)
+            });
+            let cost = nodes as f64 * blocks * node_pair
+                + (left as f64 * blocks + n * kept) * pair
+                + n * INTERP_PAIRS;
+            (cost, nodes)
+        };
         for ((f, k), blocks, kept) in table_lights {
+            // a light whose coarsest table costs more than the best is not worth its trial
+            if table_cost(FIRST_TABLE, blocks, kept).0 >= best.2.min(most) {
+                continue;
+            }
             let e_light = match light_error.get(&(f, k)) {
                 Some(&e) => e,
                 // texels kept beside a full-resolution map are the map itself
@@ -527,12 +637,14 @@ pub(crate) fn choose_plan<'a>(
                 None if s_pixels * (blocks + kept) > budget => continue,
                 None => {
                     budget -= s_pixels * (blocks + kept);
+                    let t = std::time::Instant::now();
                     let e = trial.image_error(&method(f, k, None))?;
+                    trace(&format!("{} (image): {e:.2e}", method(f, k, None)), t);
                     light_error.insert((f, k), e);
                     e
                 }
             };
-            if e_light * SAFETY > tol / 2.0 {
+            if e_light * chooser.safety > tol / 2.0 {
                 continue;
             }
             // after a light's table passed, the next light starts a step below its size
@@ -541,41 +653,83 @@ pub(crate) fn choose_plan<'a>(
                 .position(|&r| r >= FIRST_TABLE)
                 .unwrap_or(0);
             let mut i = passed_at.map_or(first, |p: usize| p.saturating_sub(1).max(first));
+            // the last miss's scaled error with this light
+            let mut last_miss: Option<f64> = None;
             while i < TABLE_SIZES.len() {
                 let r = TABLE_SIZES[i];
-                let grid = Grid::new(r, &prep.pixels);
-                let (nodes, left) = Table::count(&grid, &prep.pixels);
-                let node_pair = if backward {
-                    BACKWARD_PAIR + JACOBIAN_PAIR
-                } else {
-                    1.0
-                };
-                let cost = nodes as f64 * blocks * node_pair
-                    + (left as f64 * blocks + n * kept) * pair
-                    + n * INTERP_PAIRS;
+                let (cost, nodes) = table_cost(r, blocks, kept);
                 if cost >= best.2.min(most) {
+                    trace(
+                        &format!("table{r}: cost {:.2} of exact, stop", cost / exact_cost),
+                        t0,
+                    );
                     break;
+                }
+                // a size whose dLoss/dL missed with another light misses again
+                if let Some(&e_env) = env_errors.get(&(f, r))
+                    && e_env * chooser.safety_sums > tol
+                {
+                    let want = r as f64 * (e_env * chooser.safety_sums / tol).cbrt();
+                    trace(
+                        &format!("table{r}+keep{k} (f {f}): dLoss/dL missed before"),
+                        t0,
+                    );
+                    i += 1;
+                    while i < TABLE_SIZES.len() && (TABLE_SIZES[i] as f64) < want {
+                        i += 1;
+                    }
+                    continue;
                 }
                 // the image's trial, and the gradients' if the image passes
                 let node_work = nodes.min(16 * s_tables as usize) as f64 * blocks;
                 let spend = node_work + s_tables * kept;
                 if spend > budget {
+                    trace(
+                        &format!(
+                            "table{r}: budget {:.3} of exact left, stop",
+                            budget / exact_cost
+                        ),
+                        t0,
+                    );
                     break;
                 }
                 budget -= spend;
                 let m = method(f, k, Some(r));
-                let e = trial.estimate(&m, tol)?;
-                if e.d_env.is_some() {
-                    budget -= node_work * node_pair + s_tables * kept * BACKWARD_PAIR;
+                let t = std::time::Instant::now();
+                let e = trial.estimate(&m, tol, chooser)?;
+                trace(&format!("{m}: {e:?}"), t);
+                if e.d_normals.is_some() {
+                    budget -= node_work * JACOBIAN_PAIR + s_tables * kept * BACKWARD_PAIR;
                 }
-                if e.max() * SAFETY <= tol {
+                if let Some(e_env) = e.d_env {
+                    env_errors.insert((f, r), e_env);
+                }
+                if e.d_env.is_some() {
+                    // the texels' trial: the table's nodes and the kept texels on every pixel
+                    let texels = trial.texel_count() as f64;
+                    let first_time = if texels_charged { 0.0 } else { n * texels };
+                    texels_charged = true;
+                    budget -=
+                        (nodes as f64 * texels + first_time) * BACKWARD_PAIR + n * INTERP_PAIRS;
+                }
+                if e.scaled(chooser) <= tol {
                     best = (m, e, cost);
                     passed_at = Some(i);
                     break;
                 }
+                // an error that a finer table did not bring down by a quarter is this
+                // light's floor (the horizons of bright texels left in the table): the
+                // next light, with more texels kept, may pass
+                if last_miss.is_some_and(|m| e.scaled(chooser) > FLOOR * m) {
+                    trace(&format!("{m}: at its floor, next light"), t0);
+                    break;
+                }
+                last_miss = Some(e.scaled(chooser));
                 // the resolution this error asks for, if the table's share falls as h^3
-                let share = (e.max() - e_light).max(e.max() / 2.0);
-                let room = (tol / SAFETY - e_light).max(tol / SAFETY / 2.0);
+                // (in units of the pixels' safety factor)
+                let (safety, worst) = (chooser.safety, e.scaled(chooser) / chooser.safety);
+                let share = (worst - e_light).max(worst / 2.0);
+                let room = (tol / safety - e_light).max(tol / safety / 2.0);
                 let want = r as f64 * (share / room).cbrt();
                 i += 1;
                 while i < TABLE_SIZES.len() && (TABLE_SIZES[i] as f64) < want {
@@ -585,6 +739,7 @@ pub(crate) fn choose_plan<'a>(
         }
     }
     let (m, e, cost) = best;
+    trace(&format!("chose {m}"), t0);
     let chosen = Plan::new(backend, prep, &scene.env, &m, &prep.pixels)?;
 
     let choice = Choice {

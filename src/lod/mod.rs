@@ -27,7 +27,7 @@ mod cull;
 mod light;
 mod table;
 
-pub use choose::{Choice, Chooser, Estimate, choose};
+pub use choose::{Choice, Chooser, ESTIMATE_BUDGET, Estimate, SAFETY, SAFETY_SUMS, choose};
 
 use crate::Backend;
 use crate::error::{Error, Result};

@@ -5,7 +5,7 @@ use crate::Backend;
 use crate::envmap::EnvMap;
 use crate::error::Result;
 use crate::prepare::{PixelRec, Prepared};
-use crate::scene::{Gradients, Image};
+use crate::scene::{Gradients, Image, Wanted};
 
 use super::Method;
 use super::cull::Groups;
@@ -186,11 +186,23 @@ impl<'a> Plan<'a> {
     /// The gradients for upstream dLoss/dImage `upstream`: the exact vector-Jacobian
     /// product of the approximation.
     pub fn backward(&self, backend: &dyn Backend, upstream: &Image) -> Result<Gradients> {
+        self.backward_wanted(backend, upstream, Wanted::ALL)
+    }
+
+    /// [`Plan::backward`] for the gradients `wanted` asks for; the others are zero (or
+    /// partial: they are for the caller to ignore).
+    pub fn backward_wanted(
+        &self,
+        backend: &dyn Backend,
+        upstream: &Image,
+        wanted: Wanted,
+    ) -> Result<Gradients> {
         let Some(p) = &self.parts else {
             return Ok(backend
-                .backward_prepared(
+                .backward_prepared_wanted(
                     std::slice::from_ref(self.prep),
                     std::slice::from_ref(upstream),
+                    wanted,
                 )?
                 .remove(0));
         };
@@ -205,7 +217,37 @@ impl<'a> Plan<'a> {
                 _ => upstream.clone(),
             })
             .collect();
-        let grads = backend.backward_prepared(&p.scenes, &ups)?;
+        // a table's dLoss/dn comes from the nodes' Jacobians, not from their backward pass
+        let node_wanted = Wanted {
+            normals: false,
+            ..wanted
+        };
+        let grads = match &p.table {
+            Some((_, nodes)) if !wanted.normals || !wanted.env && !wanted.ctrl => {
+                // each scene's own gradients; the nodes' only where they serve
+                let mut out = Vec::with_capacity(p.scenes.len());
+                for (i, (s, u)) in p.scenes.iter().zip(&ups).enumerate() {
+                    let w = if nodes.contains(&i) {
+                        node_wanted
+                    } else {
+                        wanted
+                    };
+                    out.push(if w.any() {
+                        backend
+                            .backward_prepared_wanted(
+                                std::slice::from_ref(s),
+                                std::slice::from_ref(u),
+                                w,
+                            )?
+                            .remove(0)
+                    } else {
+                        Gradients::zeros(s.env_height * s.env_width, s.width * s.height)
+                    });
+                }
+                out
+            }
+            _ => backend.backward_prepared_wanted(&p.scenes, &ups, wanted)?,
+        };
         let mut d_blocks = vec![[0.0f32; 3]; p.lights.rows * p.lights.cols];
         let mut d_normals = vec![[0.0f32; 3]; self.prep.width * self.prep.height];
         let mut d_ctrl = [0.0f32; crate::N_PARAMS];
@@ -218,17 +260,21 @@ impl<'a> Plan<'a> {
         if let Some((t, nodes)) = &p.table {
             let mut jac = vec![[[0.0f32; 3]; 3]; t.normals.len()];
             for &n in nodes {
-                let js = backend
-                    .normal_jacobians(std::slice::from_ref(&p.scenes[n]))?
-                    .remove(0);
                 let g = &grads[n];
                 add(&mut d_blocks, &g.d_env);
                 add_ctrl(&mut d_ctrl, &g.d_ctrl);
-                for (px, j) in p.scenes[n].pixels.iter().zip(js) {
-                    jac[px.index] = j;
+                if wanted.normals {
+                    let js = backend
+                        .normal_jacobians(std::slice::from_ref(&p.scenes[n]))?
+                        .remove(0);
+                    for (px, j) in p.scenes[n].pixels.iter().zip(js) {
+                        jac[px.index] = j;
+                    }
                 }
             }
-            t.normal_gradients(&upstream.pixels, &jac, &mut d_normals);
+            if wanted.normals {
+                t.normal_gradients(&upstream.pixels, &jac, &mut d_normals);
+            }
         }
         let d_kept = p.kept.map(|k| {
             let g = &grads[k];
