@@ -218,36 +218,16 @@ impl<'a> Plan<'a> {
             })
             .collect();
         // a table's dLoss/dn comes from the nodes' Jacobians, not from their backward pass
-        let node_wanted = Wanted {
-            normals: false,
-            ..wanted
-        };
-        let grads = match &p.table {
-            Some((_, nodes)) if !wanted.normals || !wanted.env && !wanted.ctrl => {
-                // each scene's own gradients; the nodes' only where they serve
-                let mut out = Vec::with_capacity(p.scenes.len());
-                for (i, (s, u)) in p.scenes.iter().zip(&ups).enumerate() {
-                    let w = if nodes.contains(&i) {
-                        node_wanted
-                    } else {
-                        wanted
-                    };
-                    out.push(if w.any() {
-                        backend
-                            .backward_prepared_wanted(
-                                std::slice::from_ref(s),
-                                std::slice::from_ref(u),
-                                w,
-                            )?
-                            .remove(0)
-                    } else {
-                        Gradients::zeros(s.env_height * s.env_width, s.width * s.height)
-                    });
-                }
-                out
-            }
-            _ => backend.backward_prepared_wanted(&p.scenes, &ups, wanted)?,
-        };
+        let wants: Vec<Wanted> = (0..p.scenes.len())
+            .map(|i| match &p.table {
+                Some((_, nodes)) if nodes.contains(&i) => Wanted {
+                    normals: false,
+                    ..wanted
+                },
+                _ => wanted,
+            })
+            .collect();
+        let grads = backward_each(backend, &p.scenes, &ups, &wants)?;
         let mut d_blocks = vec![[0.0f32; 3]; p.lights.rows * p.lights.cols];
         let mut d_normals = vec![[0.0f32; 3]; self.prep.width * self.prep.height];
         let mut d_ctrl = [0.0f32; crate::N_PARAMS];
@@ -287,6 +267,42 @@ impl<'a> Plan<'a> {
             d_normals,
             d_ctrl,
         })
+    }
+}
+
+/// Each scene's backward pass for its own `wants`: one batch when they all want the same,
+/// else scene by scene (zeros for a scene that wants nothing).
+fn backward_each(
+    backend: &dyn Backend,
+    scenes: &[Prepared],
+    ups: &[Image],
+    wants: &[Wanted],
+) -> Result<Vec<Gradients>> {
+    match wants.first() {
+        Some(&w) if w.any() && wants.iter().all(|&x| x == w) => {
+            backend.backward_prepared_wanted(scenes, ups, w)
+        }
+        _ => scenes
+            .iter()
+            .zip(ups)
+            .zip(wants)
+            .map(|((s, u), &w)| {
+                if w.any() {
+                    Ok(backend
+                        .backward_prepared_wanted(
+                            std::slice::from_ref(s),
+                            std::slice::from_ref(u),
+                            w,
+                        )?
+                        .remove(0))
+                } else {
+                    Ok(Gradients::zeros(
+                        s.env_height * s.env_width,
+                        s.width * s.height,
+                    ))
+                }
+            })
+            .collect(),
     }
 }
 
