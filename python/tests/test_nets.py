@@ -121,6 +121,26 @@ def test_resume_reaches_the_uninterrupted_weights(dataset):
         train.train(other, dataset / "runs" / "split", resume=True, quiet=True)
 
 
+def test_init_starts_from_weights(dataset):
+    first = dataset / "runs" / "first"
+    train.train(train.load_config(write_config(dataset, "first", steps=3)), first, quiet=True)
+    # `init` is relative to the config; a run stopped at step 0 writes its starting weights
+    more = train.load_config(write_config(dataset, "more", steps=5, seed=6, init="runs/first/weights.safetensors"))
+    train.train(more, dataset / "runs" / "more0", stop_at=0, quiet=True)
+    a = load(first / "weights.safetensors").state_dict()
+    b = load(dataset / "runs" / "more0" / "weights.safetensors").state_dict()
+    for k in a:
+        assert torch.equal(a[k], b[k]), k
+    # and training goes on from there
+    train.train(more, dataset / "runs" / "more", quiet=True)
+    c = load(dataset / "runs" / "more" / "weights.safetensors").state_dict()
+    assert any(not torch.equal(a[k], c[k]) for k in a)
+    # nets of other sizes are refused, naming the file
+    wide = train.load_config(write_config(dataset, "wide", width=4, init="runs/first/weights.safetensors"))
+    with pytest.raises(ValueError, match=r"first/weights.safetensors: its nets are .*width=8.*width=4"):
+        train.train(wide, dataset / "runs" / "wide", quiet=True)
+
+
 def test_ddp_two_processes(dataset):
     path = write_config(dataset, "ddp", steps=4)
     out = dataset / "runs" / "ddp"

@@ -3,7 +3,9 @@
     python -m matedit.nets.train CONFIG.py [--out DIR] [--resume] [--stop-at STEP]
     torchrun --nproc_per_node 2 -m matedit.nets.train CONFIG.py      # DDP, gloo backend
 
-CONFIG is a small Python file setting any of DEFAULTS (below); `data` is relative to it.
+CONFIG is a small Python file setting any of DEFAULTS (below); `data` and `init` are
+relative to it. `init` starts the nets from a weights file (a finished run's, to train it
+further on another schedule) instead of at random; the config's model sizes must match it.
 DIR (default runs/CONFIG-NAME) receives ckpt.pt (model, optimiser, step, RNG states, loss
 history; written atomically every `checkpoint_every` steps or `checkpoint_seconds`),
 weights.safetensors (for `matedit.nets.load`), losses.png, and run.json (config, seed, the
@@ -46,10 +48,11 @@ import torch.nn.functional as F
 
 import matedit.torch
 from matedit.nets.data import ChunkStream, spec_digest
-from matedit.nets.model import Nets, NetsConfig, check_sizes, normalise, prepare, probe_scene, save, slog, spheres
+from matedit.nets.model import Nets, NetsConfig, check_sizes, load, normalise, prepare, probe_scene, save, slog, spheres
 
 DEFAULTS = {
     "data": "ds",  # the training folder of `matedit synth`
+    "init": "",  # weights.safetensors to start from (empty: a random start)
     "width": 16,  # model sizes (model.NetsConfig)
     "levels": 3,
     "env_height": 16,
@@ -107,6 +110,8 @@ def load_config(path) -> dict:
     if not (cfg["lr"] > 0 and math.isfinite(cfg["lr"])):
         raise ValueError(f"{path}: lr = {cfg['lr']}: expected a positive number")
     cfg["data"] = str((path.parent / cfg["data"]).resolve())
+    if cfg["init"]:
+        cfg["init"] = str((path.parent / cfg["init"]).resolve())
     return cfg
 
 
@@ -231,6 +236,11 @@ def train(cfg: dict, out, resume: bool = False, stop_at: int | None = None, quie
     random.seed(cfg["seed"])
 
     nets = Nets(NetsConfig(**{k: cfg[k] for k in ("width", "levels", "env_height", "env_width", "basis")}))
+    if cfg["init"] and not resume:
+        start = load(cfg["init"])
+        if start.cfg != nets.cfg:
+            raise ValueError(f"{cfg['init']}: its nets are {start.cfg}, the config asks for {nets.cfg}")
+        nets.load_state_dict(start.state_dict())
     opt = torch.optim.AdamW(nets.parameters(), lr=cfg["lr"], weight_decay=cfg["weight_decay"])
     step, history, seconds = 0, [], 0.0
     ckpt_path = out / "ckpt.pt"
