@@ -1,6 +1,8 @@
 //! The triangle mesh: positions, optional per-vertex normals, triangles; its checks, its
 //! vertex normals, and the geometry the rasteriser and the shape generators share.
 
+use rayon::slice::ParallelSliceMut;
+
 use crate::error::{Error, Result};
 
 /// A triangle mesh. Triangles index `positions` (and `normals`, which, when given, has one
@@ -147,14 +149,17 @@ impl Mesh {
     }
 
     /// Area-weighted vertex normals: each vertex gets the sum of the (unnormalised) face
-    /// normals of the triangles around it, normalised, following the triangles' winding.
-    /// A vertex that no triangle with an area uses gets [0, 0, 0] (the rasteriser then
-    /// takes the face normal).
+    /// normals of the triangles around it, normalised, with the triangles' windings made
+    /// to agree first ([`Mesh::winding_signs`]): a file whose faces are wound every which
+    /// way gets the normals of its surface, not sums that cancel. A vertex that no
+    /// triangle with an area uses gets [0, 0, 0] (the rasteriser then takes the face
+    /// normal).
     pub fn smooth_normals(&self) -> Vec<[f32; 3]> {
+        let signs = self.winding_signs();
         let mut sum = vec![[0.0f64; 3]; self.positions.len()];
-        for tri in &self.triangles {
+        for (tri, &sign) in self.triangles.iter().zip(&signs) {
             let [a, b, c] = tri.map(|v| widen(self.positions[v as usize]));
-            let n = cross(sub(b, a), sub(c, a));
+            let n = scale(cross(sub(b, a), sub(c, a)), sign);
             for &v in tri {
                 sum[v as usize] = add(sum[v as usize], n);
             }
@@ -162,6 +167,69 @@ impl Mesh {
         sum.into_iter()
             .map(|n| unit(n).map_or([0.0; 3], |u| u.map(|c| c as f32)))
             .collect()
+    }
+
+    /// Per triangle, 1 or -1: the signs that make the windings agree, found by walking from
+    /// each connected part's first triangle across the edges that exactly two triangles
+    /// share (agreeing windings run a shared edge in opposite directions). All 1 where the
+    /// windings already agree, without the walk. An edge of three or more triangles joins
+    /// none of them; a surface that cannot be oriented (a Moebius strip) keeps the first
+    /// sign each triangle gets.
+    pub fn winding_signs(&self) -> Vec<f64> {
+        let n = self.triangles.len();
+        // every edge (low vertex, high vertex, triangle, whether it runs low -> high)
+        let mut edges: Vec<(u32, u32, u32, bool)> = Vec::with_capacity(3 * n);
+        for (t, tri) in self.triangles.iter().enumerate() {
+            for k in 0..3 {
+                let (a, b) = (tri[k], tri[(k + 1) % 3]);
+                if a != b {
+                    edges.push((a.min(b), a.max(b), t as u32, a < b));
+                }
+            }
+        }
+        edges.par_sort_unstable();
+        // the pairs of triangles sharing an edge: (t, u, whether they disagree)
+        let mut pairs = Vec::new();
+        let mut i = 0;
+        while i < edges.len() {
+            let mut j = i + 1;
+            while j < edges.len() && edges[j].0 == edges[i].0 && edges[j].1 == edges[i].1 {
+                j += 1;
+            }
+            if j - i == 2 && edges[i].2 != edges[i + 1].2 {
+                pairs.push((edges[i].2, edges[i + 1].2, edges[i].3 == edges[i + 1].3));
+            }
+            i = j;
+        }
+        let mut signs = vec![1.0; n];
+        if !pairs.iter().any(|p| p.2) {
+            return signs;
+        }
+        let mut adjacent: Vec<Vec<(u32, bool)>> = vec![Vec::new(); n];
+        for &(t, u, disagree) in &pairs {
+            adjacent[t as usize].push((u, disagree));
+            adjacent[u as usize].push((t, disagree));
+        }
+        let mut seen = vec![false; n];
+        let mut stack = Vec::new();
+        for start in 0..n {
+            if seen[start] {
+                continue;
+            }
+            seen[start] = true;
+            stack.push(start);
+            while let Some(t) = stack.pop() {
+                for &(u, disagree) in &adjacent[t] {
+                    let u = u as usize;
+                    if !seen[u] {
+                        seen[u] = true;
+                        signs[u] = if disagree { -signs[t] } else { signs[t] };
+                        stack.push(u);
+                    }
+                }
+            }
+        }
+        signs
     }
 
     /// Appends `other`'s triangles and vertices. Normals are kept only if both have them.
@@ -264,6 +332,19 @@ mod tests {
             ..tetra()
         };
         assert_eq!(m.validate(), Err("the mesh has no triangles".into()));
+    }
+
+    #[test]
+    fn windings_made_to_agree() {
+        let m = tetra();
+        assert_eq!(m.winding_signs(), vec![1.0; 4]);
+        let mut shuffled = m.clone();
+        shuffled.triangles[1].swap(0, 1);
+        shuffled.triangles[3].swap(1, 2);
+        let signs = shuffled.winding_signs();
+        // relative to the first triangle, the two rewound ones get -1
+        assert_eq!(signs, vec![1.0, -1.0, 1.0, -1.0]);
+        assert_eq!(shuffled.smooth_normals(), m.smooth_normals());
     }
 
     #[test]
