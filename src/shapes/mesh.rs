@@ -189,18 +189,13 @@ impl Mesh {
         }
         edges.par_sort_unstable();
         // the pairs of triangles sharing an edge: (t, u, whether they disagree)
-        let mut pairs = Vec::new();
-        let mut i = 0;
-        while i < edges.len() {
-            let mut j = i + 1;
-            while j < edges.len() && edges[j].0 == edges[i].0 && edges[j].1 == edges[i].1 {
-                j += 1;
-            }
-            if j - i == 2 && edges[i].2 != edges[i + 1].2 {
-                pairs.push((edges[i].2, edges[i + 1].2, edges[i].3 == edges[i + 1].3));
-            }
-            i = j;
-        }
+        let pairs: Vec<(u32, u32, bool)> = edges
+            .chunk_by(|e, f| (e.0, e.1) == (f.0, f.1))
+            .filter_map(|run| match run {
+                [e, f] if e.2 != f.2 => Some((e.2, f.2, e.3 == f.3)),
+                _ => None,
+            })
+            .collect();
         let mut signs = vec![1.0; n];
         if !pairs.iter().any(|p| p.2) {
             return signs;
