@@ -27,6 +27,9 @@ impl PassTiming {
     }
 }
 
+/// dI^k/dn of one pixel, `[k][axis]`: a row of the normals' Jacobian per channel.
+pub type Jacobian = [[f32; 3]; 3];
+
 /// A backend: something that runs the layer's forward and backward passes.
 ///
 /// A backend works on [`prepare::Prepared`] scenes: the levels of detail in [`crate::lod`] hand
@@ -59,7 +62,7 @@ pub trait Backend: Send + Sync {
     /// dI^k/dn per pixel of each prepared scene (in `pixels` order), `[k][axis]`: what a
     /// normal table interpolates for dLoss/dn. By default three backward passes, one per
     /// channel, over the pixels.
-    fn normal_jacobians(&self, preps: &[Prepared]) -> Result<Vec<Vec<[[f32; 3]; 3]>>> {
+    fn normal_jacobians(&self, preps: &[Prepared]) -> Result<Vec<Vec<Jacobian>>> {
         let mut copies = Vec::with_capacity(preps.len());
         let mut ups = Vec::with_capacity(preps.len());
         for p in preps {
@@ -92,6 +95,19 @@ pub trait Backend: Send + Sync {
                     .collect()
             })
             .collect())
+    }
+    /// [`Backend::backward_prepared_wanted`] and [`Backend::normal_jacobians`] of the
+    /// same scenes: what a normal table's nodes need for every gradient. By default the
+    /// two calls.
+    fn backward_with_jacobians(
+        &self,
+        preps: &[Prepared],
+        upstream: &[Image],
+        wanted: Wanted,
+    ) -> Result<Vec<(Gradients, Vec<Jacobian>)>> {
+        let grads = self.backward_prepared_wanted(preps, upstream, wanted)?;
+        let jacs = self.normal_jacobians(preps)?;
+        Ok(grads.into_iter().zip(jacs).collect())
     }
     /// One image per scene. By default scene by scene, so that one scene's preparation is
     /// in memory at a time.

@@ -76,7 +76,7 @@ pub mod splitmix;
 pub mod supersample;
 pub mod synth;
 
-pub use backend::{Backend, PassTiming};
+pub use backend::{Backend, Jacobian, PassTiming};
 pub use camera::Camera;
 pub use envmap::{Convention, EnvMap};
 pub use error::{Error, Result};

@@ -194,6 +194,13 @@ impl Wanted {
         ctrl: true,
     };
 
+    /// No gradient.
+    pub const NONE: Wanted = Wanted {
+        env: false,
+        normals: false,
+        ctrl: false,
+    };
+
     /// Whether any gradient is wanted.
     pub fn any(self) -> bool {
         self.env || self.normals || self.ctrl

@@ -265,6 +265,10 @@ fn constant_light_matches_the_analytic_value() {
     assert!((centre / want - 1.0).abs() < 1e-3, "{centre} vs {want}");
 }
 
+fn flat_jacobians(j: &[matedit::Jacobian]) -> Vec<f64> {
+    j.iter().flatten().flatten().map(|&v| v.into()).collect()
+}
+
 #[test]
 fn normal_jacobians_match_the_reference_backward() {
     // the fast path's one-pass dI^k/dn against the f64 reference's three backward passes
@@ -309,21 +313,65 @@ fn normal_jacobians_match_the_reference_backward() {
         let got = Backend::normal_jacobians(&cpu, &preps).unwrap();
         for (c, (g, w)) in got.iter().zip(&want).enumerate() {
             assert_eq!(g.len(), preps[c].pixels.len());
-            let g: Vec<f64> = g
-                .iter()
-                .flatten()
-                .flatten()
-                .map(|&v| f64::from(v))
-                .collect();
-            let w: Vec<f64> = w
-                .iter()
-                .flatten()
-                .flatten()
-                .map(|&v| f64::from(v))
-                .collect();
+            let (g, w) = (flat_jacobians(g), flat_jacobians(w));
             let what = format!("case {c} {} dI/dn", cpu.level().name());
             assert!(max_abs(&w) > 0.0, "{what}: all zero");
             assert_close(&what, &g, &w, GRAD_TOL * max_abs(&w), 0.0);
+        }
+    }
+}
+
+#[test]
+fn backward_with_jacobians_is_both_passes_in_one() {
+    // the Jacobian from the backward pass's own lobe terms, through the plan kernels (a
+    // preset sharing its exponents) and the dense ones (nine lobes of their own): the
+    // reference's Jacobian, and gradients bitwise those of the backward pass alone
+    use matedit::Backend;
+    use matedit::scene::Wanted;
+    let mut rng = Rng::new(23);
+    let mut cases = Vec::new();
+    for preset in [Some("plastic-red"), None] {
+        let ortho = Camera::Orthographic;
+        let mut s = random_scene(&mut rng, 9, 8, 16, 32, Convention::Equirect, ortho);
+        s.material = match preset {
+            Some(p) => matedit::presets::lookup(p).expect("preset"),
+            None => random_material(&mut rng, (0.05, 1.5), (0.3, 80.0)),
+        };
+        cases.push(s);
+    }
+    let preps: Vec<Prepared> = cases.iter().map(Prepared::new).collect();
+    let ups: Vec<matedit::Image> = preps
+        .iter()
+        .map(|p| matedit::Image {
+            width: p.width,
+            height: p.height,
+            pixels: (0..p.width * p.height)
+                .map(|_| [0, 1, 2].map(|_| rng.uniform(-1.0, 1.0) as f32))
+                .collect(),
+        })
+        .collect();
+    let want = reference::Reference.normal_jacobians(&preps).unwrap();
+    let sums = Wanted {
+        normals: false,
+        ..Wanted::ALL
+    };
+    for cpu in levels() {
+        for wanted in [sums, Wanted::ALL] {
+            let both = Backend::backward_with_jacobians(&cpu, &preps, &ups, wanted).unwrap();
+            let alone = Backend::backward_prepared_wanted(&cpu, &preps, &ups, wanted).unwrap();
+            for (c, ((g, j), (a, w))) in both.iter().zip(alone.iter().zip(&want)).enumerate() {
+                let what = format!("case {c} {} {wanted:?}", cpu.level().name());
+                assert_eq!(g, a, "{what}: gradients");
+                let (j, w) = (flat_jacobians(j), flat_jacobians(w));
+                assert!(max_abs(&w) > 0.0, "{what}: all zero");
+                assert_close(
+                    &format!("{what} dI/dn"),
+                    &j,
+                    &w,
+                    GRAD_TOL * max_abs(&w),
+                    0.0,
+                );
+            }
         }
     }
 }

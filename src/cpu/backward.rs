@@ -6,7 +6,7 @@ use pulp::{Simd, WithSimd};
 
 use super::forward::GROUP_TEXELS;
 use super::math::{exp2, exp2m1};
-use super::pair::{Cols, Setup, coef, dpow, geo, underflows};
+use super::pair::{Cols, Setup, add_jacobian, coef, dpow, geo, underflows};
 use super::table::{Px, TexelTable};
 use crate::material::idx;
 use crate::scene::Wanted;
@@ -31,6 +31,9 @@ pub struct Backward<'a> {
     /// The gradients to compute: the terms of the others are left out (their sums stay
     /// as they were).
     pub wanted: Wanted,
+    /// With it, also dI^k/dn per pixel of `px` (index k * 3 + axis), added into: the
+    /// normals' Jacobian, in the same pass (orthographic cameras).
+    pub jac: Option<&'a mut [[f64; 9]]>,
 }
 
 impl WithSimd for Backward<'_> {
@@ -38,18 +41,19 @@ impl WithSimd for Backward<'_> {
 
     #[inline(always)]
     fn with_simd<S: Simd>(self, s: S) {
-        if self.setup.perspective {
-            self.run::<S, true>(s)
-        } else {
-            self.run::<S, false>(s)
+        match (self.setup.perspective, self.jac.is_some()) {
+            (true, _) => self.run::<S, true, false>(s),
+            (false, false) => self.run::<S, false, false>(s),
+            (false, true) => self.run::<S, false, true>(s),
         }
     }
 }
 
 impl Backward<'_> {
-    /// The pass for a perspective (`P`) or orthographic camera.
+    /// The pass for a perspective (`P`) or orthographic camera, with the normals'
+    /// Jacobian (`J`, orthographic only) or without.
     #[inline(always)]
-    fn run<S: Simd, const P: bool>(self, s: S) {
+    fn run<S: Simd, const P: bool, const J: bool>(mut self, s: S) {
         let lanes = S::F32_LANES;
         let cols = Cols::<S>::new(self.table);
         let plan = self.setup.plan;
@@ -58,6 +62,13 @@ impl Backward<'_> {
         let zero = s.splat_f32s(0.0);
         let one = s.splat_f32s(1.0);
         let (want_dn, want_ctrl) = (self.wanted.normals, self.wanted.ctrl);
+        // the lobes' dI/dx, for dLoss/dn or the Jacobian
+        let want_dx = want_dn || J;
+        let mut no_jac = Vec::new();
+        let jac_out = match self.jac.take() {
+            Some(j) => j,
+            None => &mut no_jac[..],
+        };
         // per block of the group: dL/d_omega (3), then per (k, s, t) one sum (orthographic)
         // or one per spline point j (perspective)
         let per_t = if P { N_CTRL_POINTS } else { 1 };
@@ -90,14 +101,21 @@ impl Backward<'_> {
         for g0 in (0..n_blocks).step_by(per_group) {
             let g1 = (g0 + per_group).min(n_blocks);
             tacc.iter_mut().for_each(|v| *v = zero);
-            for ((p, gp), dn_out) in self.px.iter().zip(self.g).zip(self.dn.iter_mut()) {
+            for (q, ((p, gp), dn_out)) in self
+                .px
+                .iter()
+                .zip(self.g)
+                .zip(self.dn.iter_mut())
+                .enumerate()
+            {
                 let mut dn = [zero; 3];
+                let mut jac = [zero; 9];
                 for b in g0..g1 {
                     let Some(g) = geo::<S, P>(s, &cols, p, b) else {
                         continue;
                     };
                     let acc = &mut tacc[(b - g0) * stride..(b - g0 + 1) * stride];
-                    let inv_x = if want_dn {
+                    let inv_x = if want_dx {
                         s.div_f32s(one, s.max_f32s(g.x, s.splat_f32s(1e-30)))
                     } else {
                         zero
@@ -119,7 +137,7 @@ impl Backward<'_> {
                                     continue;
                                 }
                                 let xb = exp2(s, t);
-                                let dp = if want_dn {
+                                let dp = if want_dx {
                                     dpow(s, m1, xb, inv_x, g.pos)
                                 } else {
                                     zero
@@ -162,7 +180,7 @@ impl Backward<'_> {
                             let t1 = xb.map_or(e1, |xb| s.mul_f32s(e1, xb));
                             let u = s.mul_f32s(t1, a);
                             let ead = xb
-                                .filter(|_| want_dn)
+                                .filter(|_| want_dx)
                                 .map(|_| s.mul_f32s(s.mul_f32s(e1, a), dp));
                             for k in 0..3 {
                                 if lobe.channels & (1 << k) == 0 {
@@ -187,6 +205,12 @@ impl Backward<'_> {
                         acc[k] =
                             s.mul_add_e_f32s(s.mul_f32s(s.splat_f32s(gp[k]), g.c), f[k], acc[k]);
                     }
+                    if J {
+                        let ld = [0, 1, 2].map(|k| cols.ld[k][b]);
+                        let w = [0, 1, 2].map(|a| cols.w[a][b]);
+                        let c_dx = dx.map(|d| s.mul_f32s(g.c, d));
+                        add_jacobian(s, g.up, ld, &f, c_dx, w, &g.h, &mut jac);
+                    }
                     if !want_dn {
                         continue;
                     }
@@ -206,6 +230,11 @@ impl Backward<'_> {
                 }
                 for a in 0..3 {
                     dn_out[a] += s.reduce_sum_f32s(dn[a]) as f64;
+                }
+                if J {
+                    for (o, v) in jac_out[q].iter_mut().zip(jac) {
+                        *o += s.reduce_sum_f32s(v) as f64;
+                    }
                 }
             }
             // flush the group's lane sums in a fixed order

@@ -16,7 +16,7 @@ use pulp::{Simd, WithSimd};
 
 use super::backward::TEXEL_SUMS;
 use super::math::{EXP2M1_Q, any, exp2, exp2m1_reduced, horner};
-use super::pair::{dot3, underflows, x_terms};
+use super::pair::{add_jacobian, dot3, underflows, x_terms};
 use super::table::{LobePlan, Px, TexelTable};
 use crate::material::{N_PARAMS, idx};
 
@@ -317,6 +317,9 @@ pub struct DenseBackward<'a> {
     pub dn: &'a mut [[f64; 3]],
     /// Per texel, [`super::backward::TEXEL_SUMS`] sums, added into.
     pub tex: &'a mut [f64],
+    /// With it, also dI^k/dn per pixel of `px` (index k * 3 + axis), added into: the
+    /// normals' Jacobian, in the same pass.
+    pub jac: Option<&'a mut [[f64; 9]]>,
 }
 
 impl WithSimd for DenseBackward<'_> {
@@ -334,7 +337,19 @@ impl Kernel for DenseBackward<'_> {
     }
 
     #[inline(always)]
-    fn run<S: Simd, const L: usize, const SKIP: bool>(mut self, s: S) {
+    fn run<S: Simd, const L: usize, const SKIP: bool>(self, s: S) {
+        if self.jac.is_some() {
+            self.body::<S, L, SKIP, true>(s)
+        } else {
+            self.body::<S, L, SKIP, false>(s)
+        }
+    }
+}
+
+impl DenseBackward<'_> {
+    /// The pass, with the normals' Jacobian (`J`) or without.
+    #[inline(always)]
+    fn body<S: Simd, const L: usize, const SKIP: bool, const J: bool>(mut self, s: S) {
         let lanes = S::F32_LANES;
         let stride = HEAD + PER_LOBE * 3 * L;
         let recs = S::as_simd_f32s(self.records).0;
@@ -344,6 +359,8 @@ impl Kernel for DenseBackward<'_> {
         let one = s.splat_f32s(1.0);
         // dLoss/dn lane sums per pixel over a group of blocks
         let mut dn_lanes = vec![[zero; 3]; self.px.len()];
+        // J: dI^k/dn lane sums per pixel over a group of blocks
+        let mut jac_lanes = vec![[zero; 9]; if J { self.px.len() } else { 0 }];
         for g0 in (0..n_blocks).step_by(GROUP_BLOCKS) {
             let g1 = (g0 + GROUP_BLOCKS).min(n_blocks);
             for b in g0..g1 {
@@ -355,14 +372,23 @@ impl Kernel for DenseBackward<'_> {
                 let mut dl = [zero; 3];
                 let mut d0 = [[zero; L]; 3];
                 let mut d1 = [[zero; L]; 3];
-                for ((p, gp), dnl) in self.px.iter().zip(self.g).zip(dn_lanes.iter_mut()) {
+                for (q, ((p, gp), dnl)) in self
+                    .px
+                    .iter()
+                    .zip(self.g)
+                    .zip(dn_lanes.iter_mut())
+                    .enumerate()
+                {
                     let n = p.n.map(|v| s.splat_f32s(v));
                     let Some(g) = pair(s, r, &n, s.splat_f32s(p.nn_m1)) else {
                         continue;
                     };
                     let inv_x = s.div_f32s(one, s.max_f32s(g.x, s.splat_f32s(1e-30)));
+                    let cx = s.mul_f32s(g.c, inv_x);
                     let mut along_w = zero;
                     let mut along_h = zero;
+                    // J: per channel f and the lobes' dI/dx times x
+                    let (mut fk, mut dxk) = ([zero; 3], [zero; 3]);
                     for k in 0..3 {
                         let gk = s.splat_f32s(gp[k]);
                         let gc = s.mul_f32s(gk, g.c);
@@ -387,9 +413,15 @@ impl Kernel for DenseBackward<'_> {
                             d1[k][i] = s.mul_add_e_f32s(gcl, t1, d1[k][i]);
                         }
                         dl[k] = s.mul_add_e_f32s(gc, f, dl[k]);
+                        fk[k] = f;
+                        dxk[k] = dx;
                         let gl = s.mul_f32s(gk, ld[k]);
                         along_w = s.mul_add_e_f32s(gl, f, along_w);
                         along_h = s.mul_add_e_f32s(gl, dx, along_h);
+                    }
+                    if J {
+                        let c_dx = dxk.map(|d| s.mul_f32s(cx, d));
+                        add_jacobian(s, g.up, ld, &fk, c_dx, w, &h, &mut jac_lanes[q]);
                     }
                     let along_w = s.select_f32s(g.up, along_w, zero);
                     let ch = s.mul_f32s(s.mul_f32s(g.c, along_h), inv_x);
@@ -406,11 +438,17 @@ impl Kernel for DenseBackward<'_> {
                 }
                 *dnl = [zero; 3];
             }
+            if let Some(jac) = self.jac.as_deref_mut() {
+                for (out, jl) in jac.iter_mut().zip(jac_lanes.iter_mut()) {
+                    for (o, v) in out.iter_mut().zip(jl.iter()) {
+                        *o += s.reduce_sum_f32s(*v) as f64;
+                    }
+                    *jl = [zero; 9];
+                }
+            }
         }
     }
-}
 
-impl DenseBackward<'_> {
     /// Adds block `r`'s lane sums to the texel sums of its texels (from `first`): dLoss/dL
     /// / d_omega, and dLoss/dm0, dLoss/dm1 at the texel's theta_d with the per-texel factors
     /// L d_omega (both) and a ln 2 (dm1) applied here.

@@ -4,7 +4,7 @@
 use pulp::{Simd, WithSimd};
 
 use super::math::{exp2, exp2m1};
-use super::pair::{Cols, Setup, add_channels, coef, dpow, geo, underflows};
+use super::pair::{Cols, Setup, add_channels, add_jacobian, coef, dpow, geo, underflows};
 use super::table::{Px, TexelTable};
 
 /// Texels per group: each pixel's lane sums run over one group in f32 and are then added
@@ -113,20 +113,10 @@ impl Forward<'_> {
                         acc[k] = s.mul_add_e_f32s(s.mul_f32s(f[k], g.c), cols.ld[k][b], acc[k]);
                     }
                     if J {
-                        // dI^k/dn = sum over texels of L^k d_omega (f^k w + c dI^k/dx h)
-                        for k in 0..3 {
-                            let ld = cols.ld[k][b];
-                            let along_w = s.select_f32s(g.up, s.mul_f32s(ld, f[k]), zero);
-                            let ch = s.mul_f32s(s.mul_f32s(g.c, ld), dx[k]);
-                            for a in 0..3 {
-                                let w = cols.w[a][b];
-                                jac[k * 3 + a] = s.mul_add_e_f32s(
-                                    along_w,
-                                    w,
-                                    s.mul_add_e_f32s(ch, g.h[a], jac[k * 3 + a]),
-                                );
-                            }
-                        }
+                        let ld = [0, 1, 2].map(|k| cols.ld[k][b]);
+                        let w = [0, 1, 2].map(|a| cols.w[a][b]);
+                        let c_dx = dx.map(|d| s.mul_f32s(g.c, d));
+                        add_jacobian(s, g.up, ld, &f, c_dx, w, &g.h, &mut jac);
                     }
                 }
                 for k in 0..3 {

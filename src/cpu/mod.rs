@@ -25,10 +25,10 @@ pub mod table;
 
 use rayon::prelude::*;
 
-use crate::Backend;
 use crate::error::{Error, Result};
 use crate::prepare::Prepared;
 use crate::scene::{Batch, Gradients, Image, Wanted};
+use crate::{Backend, Jacobian};
 
 /// An instruction set the fast path can run on.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -238,10 +238,23 @@ impl Backend for FastCpu {
             .collect())
     }
 
-    fn normal_jacobians(&self, preps: &[Prepared]) -> Result<Vec<Vec<[[f32; 3]; 3]>>> {
+    fn normal_jacobians(&self, preps: &[Prepared]) -> Result<Vec<Vec<Jacobian>>> {
         Ok(preps
             .par_iter()
             .map(|p| FastCpu::normal_jacobians(self, p))
+            .collect())
+    }
+
+    fn backward_with_jacobians(
+        &self,
+        preps: &[Prepared],
+        upstream: &[Image],
+        wanted: Wanted,
+    ) -> Result<Vec<(Gradients, Vec<Jacobian>)>> {
+        Ok(preps
+            .par_iter()
+            .zip(upstream)
+            .map(|(p, u)| FastCpu::backward_with_jacobians(self, p, &u.pixels, wanted))
             .collect())
     }
 }

@@ -338,3 +338,33 @@ pub fn add_channels<S: Simd>(s: S, channels: u8, v: S::f32s, f: &mut [S::f32s; 3
         }
     }
 }
+
+/// One pair block's terms of the normals' Jacobian, added to `jac` (index k * 3 + axis):
+/// dI^k/dn = L^k d_omega (f^k w + c dI^k/dx h), with `ld` = L^k d_omega, `up` the lanes
+/// above the horizon, `w` and `h` the texel's direction and half vector, and `c_dx[k]` =
+/// c dI^k/dx.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+pub fn add_jacobian<S: Simd>(
+    s: S,
+    up: S::m32s,
+    ld: [S::f32s; 3],
+    f: &[S::f32s; 3],
+    c_dx: [S::f32s; 3],
+    w: [S::f32s; 3],
+    h: &[S::f32s; 3],
+    jac: &mut [S::f32s; 9],
+) {
+    let zero = s.splat_f32s(0.0);
+    for k in 0..3 {
+        let along_w = s.select_f32s(up, s.mul_f32s(ld[k], f[k]), zero);
+        let along_h = s.mul_f32s(ld[k], c_dx[k]);
+        for a in 0..3 {
+            jac[k * 3 + a] = s.mul_add_e_f32s(
+                along_w,
+                w[a],
+                s.mul_add_e_f32s(along_h, h[a], jac[k * 3 + a]),
+            );
+        }
+    }
+}

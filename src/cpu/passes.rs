@@ -10,6 +10,7 @@ use super::dense::{Dense, DenseBackward, DenseForward};
 use super::forward::Forward;
 use super::pair::Setup;
 use super::table::{self, LobePlan, TexelTable, depends_on_x, has_scale};
+use crate::Jacobian;
 use crate::material::{N_PARAMS, idx};
 use crate::prepare::Prepared;
 use crate::scene::{Gradients, Wanted};
@@ -40,7 +41,7 @@ impl FastCpu {
 
     /// dI^k/dn per pixel of `prep.pixels` (in that order), `[k][axis]`, in one pass that
     /// costs little more than the forward one.
-    pub fn normal_jacobians(&self, prep: &Prepared) -> Vec<[[f32; 3]; 3]> {
+    pub fn normal_jacobians(&self, prep: &Prepared) -> Vec<Jacobian> {
         let (_, jac) = self.forward_sums(prep, true);
         jac.iter()
             .map(|j| std::array::from_fn(|k| std::array::from_fn(|a| j[k * 3 + a] as f32)))
@@ -114,6 +115,36 @@ impl FastCpu {
     /// the radiance), without dLoss/dctrl only the lobes with a scale (the others add
     /// nothing to the image), and the terms of what is not wanted are left out.
     pub fn backward_wanted(&self, prep: &Prepared, g: &[[f32; 3]], wanted: Wanted) -> Gradients {
+        self.backward_pass(prep, g, wanted, false).0
+    }
+
+    /// [`FastCpu::backward_wanted`] and [`FastCpu::normal_jacobians`] at once: the
+    /// Jacobian from the backward pass's own lobe terms (orthographic cameras; a
+    /// perspective one gets its own pass).
+    pub fn backward_with_jacobians(
+        &self,
+        prep: &Prepared,
+        g: &[[f32; 3]],
+        wanted: Wanted,
+    ) -> (Gradients, Vec<Jacobian>) {
+        if !prep.camera.is_orthographic() {
+            return (
+                self.backward_wanted(prep, g, wanted),
+                self.normal_jacobians(prep),
+            );
+        }
+        self.backward_pass(prep, g, wanted, true)
+    }
+
+    /// The backward pass, with the Jacobian per pixel of `prep.pixels` if `jacobian`
+    /// (orthographic cameras only; else empty).
+    fn backward_pass(
+        &self,
+        prep: &Prepared,
+        g: &[[f32; 3]],
+        wanted: Wanted,
+        jacobian: bool,
+    ) -> (Gradients, Vec<Jacobian>) {
         let perspective = !prep.camera.is_orthographic();
         let ctrl = &prep.ctrl;
         // dLoss/dctrl: every lobe (a lobe whose scale is 0 still has a gradient for its
@@ -159,6 +190,7 @@ impl FastCpu {
         let per_chunk = px.len().div_ceil(n_chunks).max(1);
         struct Part {
             dn: Vec<[f64; 3]>,
+            jac: Vec<[f64; 9]>,
             tex: Vec<f64>,
             ctrl: [f64; N_PARAMS],
         }
@@ -168,14 +200,17 @@ impl FastCpu {
             .map(|(px, gp)| {
                 let mut part = Part {
                     dn: vec![[0.0; 3]; px.len()],
+                    jac: vec![[0.0; 9]; if jacobian { px.len() } else { 0 }],
                     tex: vec![0.0; n_tex * TEXEL_SUMS],
                     ctrl: [0.0; N_PARAMS],
                 };
+                let mut jacs = part.jac.chunks_mut(BACKWARD_CHUNK);
                 for ((px, gp), dn) in px
                     .chunks(BACKWARD_CHUNK)
                     .zip(gp.chunks(BACKWARD_CHUNK))
                     .zip(part.dn.chunks_mut(BACKWARD_CHUNK))
                 {
+                    let jac = jacs.next();
                     match &dense {
                         Some(dense) => self.dispatch(DenseBackward {
                             dense,
@@ -185,6 +220,7 @@ impl FastCpu {
                             g: gp,
                             dn,
                             tex: &mut part.tex,
+                            jac,
                         }),
                         None => self.dispatch(Backward {
                             table: &table,
@@ -195,6 +231,7 @@ impl FastCpu {
                             tex: &mut part.tex,
                             ctrl: &mut part.ctrl,
                             wanted,
+                            jac,
                         }),
                     }
                 }
@@ -205,7 +242,13 @@ impl FastCpu {
         let mut tex = vec![0.0f64; n_tex * TEXEL_SUMS];
         let mut d_ctrl = [0.0f64; N_PARAMS];
         let mut dn = Vec::with_capacity(px.len());
+        let mut jac = Vec::with_capacity(if jacobian { px.len() } else { 0 });
         for part in parts {
+            jac.extend(
+                part.jac
+                    .iter()
+                    .map(|j| std::array::from_fn(|k| std::array::from_fn(|a| j[k * 3 + a] as f32))),
+            );
             for (a, b) in tex.iter_mut().zip(&part.tex) {
                 *a += b;
             }
@@ -243,7 +286,7 @@ impl FastCpu {
             d_ctrl: d_ctrl.map(|x| x as f32),
         };
         grads.keep(wanted);
-        grads
+        (grads, jac)
     }
 }
 

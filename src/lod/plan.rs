@@ -217,17 +217,36 @@ impl<'a> Plan<'a> {
                 _ => upstream.clone(),
             })
             .collect();
-        // a table's dLoss/dn comes from the nodes' Jacobians, not from their backward pass
+        // a table's dLoss/dn comes from the nodes' Jacobians, not from their backward pass;
+        // with dLoss/dn wanted, the nodes' backward pass and Jacobians are one call below
+        let node_wants = Wanted {
+            normals: false,
+            ..wanted
+        };
+        let nodes: &[usize] = p.table.as_ref().map_or(&[], |(_, n)| n);
         let wants: Vec<Wanted> = (0..p.scenes.len())
-            .map(|i| match &p.table {
-                Some((_, nodes)) if nodes.contains(&i) => Wanted {
-                    normals: false,
-                    ..wanted
-                },
-                _ => wanted,
+            .map(|i| match nodes.contains(&i) {
+                true if wanted.normals => Wanted::NONE,
+                true => node_wants,
+                false => wanted,
             })
             .collect();
-        let grads = backward_each(backend, &p.scenes, &ups, &wants)?;
+        let mut grads = backward_each(backend, &p.scenes, &ups, &wants)?;
+        let mut jacs = Vec::new();
+        if wanted.normals {
+            for &n in nodes {
+                let scene = std::slice::from_ref(&p.scenes[n]);
+                if node_wants.any() {
+                    let (g, j) = backend
+                        .backward_with_jacobians(scene, std::slice::from_ref(&ups[n]), node_wants)?
+                        .remove(0);
+                    grads[n] = g;
+                    jacs.push(j);
+                } else {
+                    jacs.push(backend.normal_jacobians(scene)?.remove(0));
+                }
+            }
+        }
         let mut d_blocks = vec![[0.0f32; 3]; p.lights.rows * p.lights.cols];
         let mut d_normals = vec![[0.0f32; 3]; self.prep.width * self.prep.height];
         let mut d_ctrl = [0.0f32; crate::N_PARAMS];
@@ -239,17 +258,15 @@ impl<'a> Plan<'a> {
         }
         if let Some((t, nodes)) = &p.table {
             let mut jac = vec![[[0.0f32; 3]; 3]; t.normals.len()];
-            for &n in nodes {
+            for (&n, js) in nodes
+                .iter()
+                .zip(jacs.iter().map(Some).chain(std::iter::repeat(None)))
+            {
                 let g = &grads[n];
                 add(&mut d_blocks, &g.d_env);
                 add_ctrl(&mut d_ctrl, &g.d_ctrl);
-                if wanted.normals {
-                    let js = backend
-                        .normal_jacobians(std::slice::from_ref(&p.scenes[n]))?
-                        .remove(0);
-                    for (px, j) in p.scenes[n].pixels.iter().zip(js) {
-                        jac[px.index] = j;
-                    }
+                for (px, j) in p.scenes[n].pixels.iter().zip(js.into_iter().flatten()) {
+                    jac[px.index] = *j;
                 }
             }
             if wanted.normals {
