@@ -92,9 +92,13 @@ const FLOOR: f64 = 0.75;
 const FIRST_TABLE: usize = 32;
 /// The cost of interpolating one pixel from a table, in pair evaluations.
 const INTERP_PAIRS: f64 = 4.0;
-/// The cost of a pair in the normals' Jacobian (a table's dLoss/dn), in forward pair
-/// evaluations.
+/// The cost of a pair in the normals' Jacobian (a table's dLoss/dn) on its own (the
+/// trials' pass), in forward pair evaluations.
 const JACOBIAN_PAIR: f64 = 2.0;
+/// The same in the nodes' backward pass, which sums the Jacobian from its own lobe terms
+/// (measured on the 512 sphere under studio at table256: 0.2 forward passes of the nodes
+/// for random-1 and 0.6 to 1.3 for the three presets).
+const FUSED_JACOBIAN_PAIR: f64 = 1.3;
 /// The cost of a pair in the backward pass, in forward pair evaluations.
 const BACKWARD_PAIR: f64 = 3.0;
 
@@ -608,7 +612,7 @@ pub(crate) fn choose_plan<'a>(
         // the radiance, so texels kept or not change it only where they are exact
         let mut env_errors: HashMap<(usize, usize), f64> = HashMap::new();
         let node_pair = if backward {
-            BACKWARD_PAIR + JACOBIAN_PAIR
+            BACKWARD_PAIR + FUSED_JACOBIAN_PAIR
         } else {
             1.0
         };
@@ -688,6 +692,26 @@ pub(crate) fn choose_plan<'a>(
                         &format!(
                             "table{r}: budget {:.3} of exact left, stop",
                             budget / exact_cost
+                        ),
+                        t0,
+                    );
+                    break;
+                }
+                // a trial that costs more than its table could save is not run (nor one
+                // of a finer table, which saves less)
+                let gradients = if backward {
+                    node_work * JACOBIAN_PAIR
+                        + s_tables * kept * BACKWARD_PAIR
+                        + nodes as f64 * trial.texel_count() as f64 * BACKWARD_PAIR
+                } else {
+                    0.0
+                };
+                if best.2 - cost < spend + gradients {
+                    trace(
+                        &format!(
+                            "table{r}+keep{k} (f {f}): would save {:.3} of exact, its trial costs {:.3}",
+                            (best.2 - cost) / exact_cost,
+                            (spend + gradients) / exact_cost
                         ),
                         t0,
                     );
