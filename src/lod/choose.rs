@@ -697,26 +697,6 @@ pub(crate) fn choose_plan<'a>(
                     );
                     break;
                 }
-                // a trial that costs more than its table could save is not run (nor one
-                // of a finer table, which saves less)
-                let gradients = if backward {
-                    node_work * JACOBIAN_PAIR
-                        + s_tables * kept * BACKWARD_PAIR
-                        + nodes as f64 * trial.texel_count() as f64 * BACKWARD_PAIR
-                } else {
-                    0.0
-                };
-                if best.2 - cost < spend + gradients {
-                    trace(
-                        &format!(
-                            "table{r}+keep{k} (f {f}): would save {:.3} of exact, its trial costs {:.3}",
-                            (best.2 - cost) / exact_cost,
-                            (spend + gradients) / exact_cost
-                        ),
-                        t0,
-                    );
-                    break;
-                }
                 budget -= spend;
                 let m = method(f, k, Some(r));
                 let t = std::time::Instant::now();
