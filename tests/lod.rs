@@ -1103,3 +1103,22 @@ fn small_scenes_are_rendered_exactly_without_an_estimate() {
     let forced = ALWAYS.choose(&cpu, &scene, 1e-2, None).unwrap();
     assert!(!forced.method.is_exact(), "{forced}");
 }
+
+#[test]
+fn backward_within_tries_no_table_when_the_finest_misses_dl() {
+    // with gradients, the finest table within the work allowed is judged on dLoss/dL
+    // first; at a tolerance it misses, no other candidate is tried
+    let scene = ortho(
+        NormalMap::sphere(96),
+        sun_env(64, 128, Convention::Paper, 5, 2),
+        glossy(),
+    );
+    let cpu = FastCpu::new().unwrap();
+    let up = upstream(&scene, 7);
+    let (_, tight) = ALWAYS.backward_within(&cpu, &scene, &up, 1e-6).unwrap();
+    assert!(tight.method.is_exact(), "{tight}");
+    assert_eq!(tight.trials, 1, "{tight:?}");
+    // where it passes, the tables are tried from the coarsest as before
+    let (_, loose) = ALWAYS.backward_within(&cpu, &scene, &up, 0.1).unwrap();
+    assert!(loose.trials > 1, "{loose:?}");
+}

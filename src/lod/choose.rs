@@ -25,6 +25,11 @@
 //!   again with other kept texels (dLoss/dL does not depend on the radiance); a light
 //!   whose finer table missed by more than `FLOOR` of its last miss goes no finer.
 //!
+//! With an upstream gradient, the finest table within the work allowed is first judged on
+//! dLoss/dL alone (where that trial costs at most a third of the budget): dLoss/dL does not
+//! depend on the radiance and falls as tables grow finer, so where it misses, no table
+//! can pass and no other candidate is tried.
+//!
 //! With `MATEDIT_LOD_TRACE` set, each trial's estimate and time go to stderr.
 
 use std::collections::HashMap;
@@ -154,6 +159,8 @@ pub struct Choice {
     pub cost: f64,
     /// The tolerance asked for.
     pub tolerance: f64,
+    /// How many candidates the estimate judged (0: none, the scene too small).
+    pub trials: usize,
 }
 
 impl std::fmt::Display for Choice {
@@ -332,6 +339,8 @@ struct Trial<'a> {
     /// dLoss/dL of a texel needs no other texel.
     /// Made when a candidate first gets that far.
     texels: std::cell::OnceCell<TexelTruth>,
+    /// Candidates judged so far.
+    count: std::cell::Cell<usize>,
 }
 
 /// The exact gradients for a sample of texels, on every pixel.
@@ -410,6 +419,7 @@ impl<'a> Trial<'a> {
             pixels,
             tables: truth(&table_positions)?,
             texels: std::cell::OnceCell::new(),
+            count: std::cell::Cell::new(0),
         })
     }
 
@@ -432,12 +442,14 @@ impl<'a> Trial<'a> {
 
     /// The estimated error of `method`'s image alone, on the per-pixel sample.
     fn image_error(&self, method: &Method) -> Result<f64> {
+        self.count.set(self.count.get() + 1);
         let image = self.plan_on(&self.pixels, method)?.forward(self.backend)?;
         Ok(rel(&image.pixels, &self.pixels.image.pixels))
     }
 
     /// The estimate of `method`; the gradients' only if the image's is within `tol`.
     fn estimate(&self, method: &Method, tol: f64, chooser: &Chooser) -> Result<Estimate> {
+        self.count.set(self.count.get() + 1);
         let truth = if method.table.is_some() {
             &self.tables
         } else {
@@ -461,25 +473,43 @@ impl<'a> Trial<'a> {
             if e.scaled(chooser) > tol {
                 return Ok(e);
             }
-            let env = &self.scene.env;
-            let texels = match self.texels.get() {
-                Some(t) => t,
-                None => {
-                    let mask = texel_mask(env);
-                    let full = self.full;
-                    let exact =
-                        Plan::masked(self.backend, full, env, &Method::EXACT, &full.pixels, &mask)?;
-                    let grads = exact.backward_wanted(self.backend, up, SUMS)?;
-                    self.texels.get_or_init(|| TexelTruth { mask, grads })
-                }
-            };
-            let (mask, full) = (&texels.mask, self.full);
-            let plan = Plan::masked(self.backend, full, env, method, &full.pixels, mask)?;
-            let g = plan.backward_wanted(self.backend, up, SUMS)?;
-            e.d_env = Some(rel_masked(&g.d_env, &texels.grads.d_env, mask));
-            e.d_ctrl = Some(rel_ctrl(&g.d_ctrl, &texels.grads.d_ctrl));
+            let (d_env, d_ctrl) = self.sums_errors(method, up)?;
+            (e.d_env, e.d_ctrl) = (Some(d_env), Some(d_ctrl));
         }
         Ok(e)
+    }
+
+    /// The estimated errors of `method`'s dLoss/dL and dLoss/dctrl for upstream `up`, on
+    /// every pixel for the sampled texels.
+    fn sums_errors(&self, method: &Method, up: &Image) -> Result<(f64, f64)> {
+        let env = &self.scene.env;
+        let texels = match self.texels.get() {
+            Some(t) => t,
+            None => {
+                let mask = texel_mask(env);
+                let full = self.full;
+                let exact =
+                    Plan::masked(self.backend, full, env, &Method::EXACT, &full.pixels, &mask)?;
+                let grads = exact.backward_wanted(self.backend, up, SUMS)?;
+                self.texels.get_or_init(|| TexelTruth { mask, grads })
+            }
+        };
+        let (mask, full) = (&texels.mask, self.full);
+        let plan = Plan::masked(self.backend, full, env, method, &full.pixels, mask)?;
+        let g = plan.backward_wanted(self.backend, up, SUMS)?;
+        Ok((
+            rel_masked(&g.d_env, &texels.grads.d_env, mask),
+            rel_ctrl(&g.d_ctrl, &texels.grads.d_ctrl),
+        ))
+    }
+
+    /// The estimated error of `method`'s dLoss/dL alone (0 without an upstream gradient).
+    fn env_error(&self, method: &Method) -> Result<f64> {
+        self.count.set(self.count.get() + 1);
+        match self.upstream {
+            Some(up) => Ok(self.sums_errors(method, up)?.0),
+            None => Ok(0.0),
+        }
     }
 }
 
@@ -505,6 +535,7 @@ pub(crate) fn choose_plan<'a>(
             estimate,
             cost,
             tolerance: tol,
+            trials: 0,
         };
         Ok((choice, plan))
     };
@@ -629,6 +660,38 @@ pub(crate) fn choose_plan<'a>(
                 + n * INTERP_PAIRS;
             (cost, nodes)
         };
+        // with gradients, dLoss/dL decides most choices. It does not depend on the
+        // radiance (texels kept or not; see `env_errors`) and falls as the table grows
+        // finer, and blocks of texels only add their own error to it: the finest table
+        // within the work allowed is judged on it first, and where it misses no table
+        // can pass, so none is tried (the scene is rendered exactly, and the estimate has
+        // cost the samples' exact layer and the texels' trial). Only where that trial
+        // costs at most a third of what the trials may spend: on small scenes it would
+        // leave too little for the others.
+        let finest = TABLE_SIZES
+            .iter()
+            .rev()
+            .copied()
+            .find(|&r| table_cost(r, n_lit as f64, 0.0).0 < most);
+        let texels = trial.texel_count() as f64;
+        let first_trial = |r: usize| {
+            let (_, nodes) = table_cost(r, n_lit as f64, 0.0);
+            (nodes as f64 + n) * texels * BACKWARD_PAIR + n * INTERP_PAIRS
+        };
+        if let (true, Some(r)) = (backward, finest)
+            && first_trial(r) <= budget / 3.0
+        {
+            let m = method(1, 0, Some(r));
+            let t = std::time::Instant::now();
+            let e_env = trial.env_error(&m)?;
+            trace(&format!("{m}: dLoss/dL {e_env:.2e}"), t);
+            budget -= first_trial(r);
+            texels_charged = true;
+            env_errors.insert((1, r), e_env);
+            if e_env * chooser.safety_sums > tol {
+                table_lights.clear();
+            }
+        }
         for ((f, k), blocks, kept) in table_lights {
             // a light whose coarsest table costs more than the best is not worth its trial
             if table_cost(FIRST_TABLE, blocks, kept).0 >= best.2.min(most) {
@@ -751,6 +814,7 @@ pub(crate) fn choose_plan<'a>(
         estimate: e,
         cost: cost / exact_cost,
         tolerance: tol,
+        trials: trial.count.get(),
     };
     Ok((choice, chosen))
 }
