@@ -43,9 +43,7 @@ impl FastCpu {
     /// costs little more than the forward one.
     pub fn normal_jacobians(&self, prep: &Prepared) -> Vec<Jacobian> {
         let (_, jac) = self.forward_sums(prep, true);
-        jac.iter()
-            .map(|j| std::array::from_fn(|k| std::array::from_fn(|a| j[k * 3 + a] as f32)))
-            .collect()
+        jac.iter().map(jacobian_f32).collect()
     }
 
     /// Per pixel of `prep.pixels`: the image's f64 sums, and with `jacobian` dI^k/dn's.
@@ -244,11 +242,7 @@ impl FastCpu {
         let mut dn = Vec::with_capacity(px.len());
         let mut jac = Vec::with_capacity(if jacobian { px.len() } else { 0 });
         for part in parts {
-            jac.extend(
-                part.jac
-                    .iter()
-                    .map(|j| std::array::from_fn(|k| std::array::from_fn(|a| j[k * 3 + a] as f32))),
-            );
+            jac.extend(part.jac.iter().map(jacobian_f32));
             for (a, b) in tex.iter_mut().zip(&part.tex) {
                 *a += b;
             }
@@ -288,6 +282,11 @@ impl FastCpu {
         grads.keep(wanted);
         (grads, jac)
     }
+}
+
+/// A pixel's f64 sums of dI^k/dn (index k * 3 + axis) as its Jacobian.
+fn jacobian_f32(j: &[f64; 9]) -> Jacobian {
+    std::array::from_fn(|k| std::array::from_fn(|a| j[k * 3 + a] as f32))
 }
 
 /// What a pass reads besides the texel table.
