@@ -207,6 +207,24 @@ fn psnr(fitted: &Image, measured: &Image, mask: &[bool]) -> f64 {
     10.0 * (peak * peak / (se / n.max(1) as f64).max(1e-300)).log10()
 }
 
+/// `material` on the sphere `normals` under each of `maps`, one scene each.
+fn under_maps(
+    material: &Material,
+    maps: &[(String, EnvMap)],
+    normals: &NormalMap,
+) -> Result<Batch, String> {
+    let scenes = maps
+        .iter()
+        .map(|(_, env)| Scene {
+            normals: normals.clone(),
+            env: env.clone(),
+            material: material.clone(),
+            camera: Camera::Orthographic,
+        })
+        .collect();
+    Batch::new(scenes).map_err(|e| e.to_string())
+}
+
 /// Adam steps of the oracle.
 const ORACLE_STEPS: usize = 150;
 
@@ -272,16 +290,7 @@ fn oracle(
     let mut best = (material.clone(), f64::INFINITY);
     for step in 0..=ORACLE_STEPS {
         let m = of(&x)?;
-        let scenes: Vec<Scene> = maps
-            .iter()
-            .map(|(_, env)| Scene {
-                normals: normals.clone(),
-                env: env.clone(),
-                material: m.clone(),
-                camera: Camera::Orthographic,
-            })
-            .collect();
-        let batch = Batch::new(scenes).map_err(err)?;
+        let batch = under_maps(&m, maps, normals)?;
         let images = renderer.render(&batch).map_err(err)?;
         let mut loss = 0.0;
         let mut ups = Vec::with_capacity(images.len());
@@ -453,17 +462,8 @@ fn run() -> Result<(), String> {
         let wall = start.elapsed().as_secs_f64();
         let (mut held, mut others) = (Vec::new(), Vec::new());
         for ((net, (material, lobes, _)), refs) in nets.iter().zip(&fits).zip(&references) {
-            let scenes: Vec<Scene> = maps
-                .iter()
-                .map(|(_, env)| Scene {
-                    normals: normals.clone(),
-                    env: env.clone(),
-                    material: material.clone(),
-                    camera: Camera::Orthographic,
-                })
-                .collect();
             let images = renderer
-                .render(&Batch::new(scenes).map_err(|e| e.to_string())?)
+                .render(&under_maps(material, &maps, &normals)?)
                 .map_err(|e| e.to_string())?;
             let mut line = format!("{:10} {:28} {lobes} lobes", method.label(), net.name);
             for ((name, _), (img, reference)) in maps.iter().zip(images.iter().zip(refs)) {
