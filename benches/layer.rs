@@ -10,7 +10,7 @@
 //!   timing unless `--ref-reps N` asks for N timed runs through `Device::Reference`;
 //! - each in-process path (`cpu`, `gpu`, `reference`) is timed through
 //!   `matedit::Renderer`: `fwd` = one render call, `fb` = one render call plus one
-//!   backward call; median of `--reps` runs after a warm-up;
+//!   backward call; median of `--reps` runs after a warm-up (at least 0.5 s of calls);
 //! - the release command line (`matedit render` and `matedit grad --device cpu` as
 //!   separate processes on the same inputs written as NPY/JSON) is timed whole, as a
 //!   user sees it: `cli-cpu` `fwd` = render process, `fb` = render + grad processes;
@@ -345,6 +345,9 @@ fn gpu_seconds(r: &Renderer) -> Option<f64> {
     (!t.is_empty()).then(|| t.iter().map(|p| p.seconds).sum())
 }
 
+/// The in-process paths render for at least this long before they are timed.
+const WARM_UP_S: f64 = 0.5;
+
 fn time_renderer(
     r: &Renderer,
     batch: &Batch,
@@ -353,7 +356,13 @@ fn time_renderer(
     warm_up: bool,
 ) -> Result<Timed, matedit::Error> {
     if warm_up {
-        r.render(batch)?;
+        // a GPU idles at a low clock and takes a while to raise it: on an H100, after a
+        // single warm-up call, the timed forward calls' GPU time had a median of 37 ms
+        // against 6.5 ms in the last of them (sphere256), so warm up for a while
+        let s = Instant::now();
+        while s.elapsed().as_secs_f64() < WARM_UP_S {
+            r.render(batch)?;
+        }
     }
     let mut fwd = Vec::new();
     let mut fwd_host = Vec::new();
