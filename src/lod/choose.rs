@@ -28,7 +28,13 @@
 //! With an upstream gradient, the finest table within the work allowed is first judged on
 //! dLoss/dL alone (where that trial costs at most a third of the budget): dLoss/dL does not
 //! depend on the radiance and falls as tables grow finer, so where it misses, no table
-//! can pass and no other candidate is tried.
+//! can pass and no other candidate is tried. With an upstream gradient, too:
+//! - only tables over the full-resolution map are tried (blocks of texels give each texel
+//!   its block's dLoss/dL, never close);
+//! - once the texels' exact gradients are made, a candidate's dLoss/dL and dLoss/dctrl are
+//!   judged before its dLoss/dn, the dearer trial (the nodes' Jacobians on the sample);
+//! - the best table's resolution with other texels kept is tried only where it could save
+//!   more work than its trial costs.
 //!
 //! With `MATEDIT_LOD_TRACE` set, each trial's estimate and time go to stderr.
 
@@ -41,7 +47,7 @@ use crate::prepare::Prepared;
 use crate::scene::{Gradients, Image, Scene, Wanted};
 
 use super::plan::Plan;
-use super::table::{Grid, Table};
+use super::table::Footprint;
 use super::{Method, TABLE_SIZES};
 
 /// The gradients judged on the sampled pixels ...
@@ -356,7 +362,10 @@ impl<'a> Trial<'a> {
         full: &'a Prepared,
         upstream: Option<&'a Image>,
     ) -> Result<Self> {
-        let truth = |positions: &[usize]| -> Result<Truth> {
+        // `image`: the exact image on the sample where it is known; `grads`: the exact
+        // dLoss/dn on the sample too (per-pixel methods are judged on images alone, so the
+        // per-pixel sample never needs it)
+        let truth = |positions: &[usize], image: Option<Image>, grads: bool| -> Result<Truth> {
             let sample = compact(full, positions);
             let upstream = upstream.map(|u| Image {
                 width: positions.len(),
@@ -366,14 +375,16 @@ impl<'a> Trial<'a> {
                     .map(|&k| u.pixels[full.pixels[k].index])
                     .collect(),
             });
-            let exact = Plan::new(backend, &sample, &scene.env, &Method::EXACT, &full.pixels)?;
-            let image = exact.forward(backend)?;
+            let image = match image {
+                Some(i) => i,
+                None => Plan::new(backend, &sample, &scene.env, &Method::EXACT, &full.pixels)?
+                    .forward(backend)?,
+            };
             // dLoss/dn from the exact Jacobians dI/dn (a forward pass in parallel chunks,
             // where a backward pass of so few pixels is one chunk on one thread);
             // dLoss/dL and dLoss/dctrl are judged on the texels' trial
             let grads = match &upstream {
-                None => None,
-                Some(u) => {
+                Some(u) if grads => {
                     let jac = backend
                         .normal_jacobians(std::slice::from_ref(&sample))?
                         .remove(0);
@@ -385,6 +396,7 @@ impl<'a> Trial<'a> {
                     }
                     Some(g)
                 }
+                _ => None,
             };
             Ok(Truth {
                 sample,
@@ -394,7 +406,7 @@ impl<'a> Trial<'a> {
             })
         };
         let positions = sample_positions(full.pixels.len());
-        let pixels = truth(&positions)?;
+        let pixels = truth(&positions, None, false)?;
         // for the tables: every 8th sampled pixel, and as many again of the brightest
         // others, where a table's error concentrates (the highlights)
         let mut table_positions: Vec<usize> = positions.iter().copied().step_by(8).collect();
@@ -411,13 +423,23 @@ impl<'a> Trial<'a> {
         let brightest = table_positions.len();
         table_positions.extend(rest.iter().take(brightest).map(|&(_, k)| k));
         table_positions.sort_unstable();
+        // a part of the per-pixel sample (whose positions are in order): its exact image
+        let table_image = Image {
+            width: table_positions.len(),
+            height: 1,
+            pixels: table_positions
+                .iter()
+                .map(|k| pixels.image.pixels[positions.binary_search(k).expect("sampled")])
+                .collect(),
+        };
+        let tables = truth(&table_positions, Some(table_image), true)?;
         Ok(Trial {
             backend,
             scene,
             full,
             upstream,
             pixels,
-            tables: truth(&table_positions)?,
+            tables,
             texels: std::cell::OnceCell::new(),
             count: std::cell::Cell::new(0),
         })
@@ -455,8 +477,11 @@ impl<'a> Trial<'a> {
         } else {
             &self.pixels
         };
+        let t = std::time::Instant::now();
         let plan = self.plan_on(truth, method)?;
+        trace("  plan", t);
         let image = plan.forward(self.backend)?;
+        trace("  image", t);
         let mut e = Estimate {
             image: rel(&image.pixels, &truth.image.pixels),
             pixels: truth.sample.pixels.len(),
@@ -465,16 +490,34 @@ impl<'a> Trial<'a> {
         if e.scaled(chooser) > tol {
             return Ok(e);
         }
-        if let (Some(up), Some(sample_up), Some(exact)) =
-            (self.upstream, &truth.upstream, &truth.grads)
-        {
-            let g = plan.backward_wanted(self.backend, sample_up, NORMALS)?;
-            e.d_normals = Some(rel(&g.d_normals, &exact.d_normals));
+        let Some(up) = self.upstream else {
+            return Ok(e);
+        };
+        let (Some(sample_up), Some(exact)) = (&truth.upstream, &truth.grads) else {
+            // a sample without the exact dLoss/dn judges images only
+            e.d_normals = Some(f64::INFINITY);
+            return Ok(e);
+        };
+        // the sums' trial is the cheaper once the texels' exact gradients are made (a
+        // quarter of the nodes' Jacobians on the sample, on the 512 sphere): first then
+        let sums_first = self.texels.get().is_some();
+        let sums = |e: &mut Estimate| -> Result<()> {
+            let (d_env, d_ctrl) = self.sums_errors(method, up)?;
+            (e.d_env, e.d_ctrl) = (Some(d_env), Some(d_ctrl));
+            trace("  sums", t);
+            Ok(())
+        };
+        if sums_first {
+            sums(&mut e)?;
             if e.scaled(chooser) > tol {
                 return Ok(e);
             }
-            let (d_env, d_ctrl) = self.sums_errors(method, up)?;
-            (e.d_env, e.d_ctrl) = (Some(d_env), Some(d_ctrl));
+        }
+        let g = plan.backward_wanted(self.backend, sample_up, NORMALS)?;
+        e.d_normals = Some(rel(&g.d_normals, &exact.d_normals));
+        trace("  dn", t);
+        if !sums_first && e.scaled(chooser) <= tol {
+            sums(&mut e)?;
         }
         Ok(e)
     }
@@ -495,8 +538,11 @@ impl<'a> Trial<'a> {
             }
         };
         let (mask, full) = (&texels.mask, self.full);
+        let t = std::time::Instant::now();
         let plan = Plan::masked(self.backend, full, env, method, &full.pixels, mask)?;
+        trace("    sums plan", t);
         let g = plan.backward_wanted(self.backend, up, SUMS)?;
+        trace("    sums backward", t);
         Ok((
             rel_masked(&g.d_env, &texels.grads.d_env, mask),
             rel_ctrl(&g.d_ctrl, &texels.grads.d_ctrl),
@@ -601,7 +647,7 @@ pub(crate) fn choose_plan<'a>(
     let s_tables = trial.tables.sample.pixels.len() as f64;
     // less the exact layer on the samples
     let mut budget = exact_cost * ESTIMATE_BUDGET
-        - (s_pixels + s_tables) * lit_total * (1.0 + if backward { BACKWARD_PAIR } else { 0.0 });
+        - (s_pixels + s_tables * (1.0 + if backward { BACKWARD_PAIR } else { 0.0 })) * lit_total;
     let mut per_pixel: Vec<((usize, usize), f64)> = light_counts
         .iter()
         // blocks give each texel its block's dLoss/dL, shaped by the block's direction:
@@ -638,6 +684,11 @@ pub(crate) fn choose_plan<'a>(
         // cannot interpolate, so a table over the rest of the map is usually the cheaper
         let keep_rank = |k: usize| KEEPS_FOR_TABLES.iter().position(|&x| x == k);
         table_lights.sort_by_key(|&((f, k), _, _)| (f, keep_rank(k)));
+        // blocks give each texel its block's dLoss/dL (see the per-pixel lights): with
+        // gradients, tables over the full-resolution map only
+        if backward {
+            table_lights.retain(|&((f, _), _, _)| f == 1);
+        }
         let mut passed_at = None;
         // dLoss/dL's estimated error per (block side, table size): it does not depend on
         // the radiance, so texels kept or not change it only where they are exact
@@ -650,11 +701,12 @@ pub(crate) fn choose_plan<'a>(
         // a table's predicted work over a light of `blocks` blocks and `kept` texels (its
         // nodes counted once per size)
         let counts: std::cell::RefCell<HashMap<usize, (usize, usize)>> = Default::default();
+        let footprint = Footprint::new(&prep.pixels);
         let table_cost = |r: usize, blocks: f64, kept: f64| {
-            let (nodes, left) = *counts.borrow_mut().entry(r).or_insert_with(|| {
-                let grid = Grid::new(r, &prep.pixels);
-                Table::count(&grid, &prep.pixels)
-            });
+            let (nodes, left) = *counts
+                .borrow_mut()
+                .entry(r)
+                .or_insert_with(|| footprint.count(r));
             let cost = nodes as f64 * blocks * node_pair
                 + (left as f64 * blocks + n * kept) * pair
                 + n * INTERP_PAIRS;
@@ -750,6 +802,25 @@ pub(crate) fn choose_plan<'a>(
                 // the image's trial, and the gradients' if the image passes
                 let node_work = nodes.min(16 * s_tables as usize) as f64 * blocks;
                 let spend = node_work + s_tables * kept;
+                // the best's table with other texels kept saves only what the kept texels
+                // cost; not worth a trial that costs more (on the 512 sphere with
+                // plastic-red, keeping none instead of 16 texels would save 0.2% of the
+                // exact layer's work, and its trial cost 4%)
+                let trial_work = spend
+                    + backward.then_some(1.0).map_or(0.0, |_| {
+                        node_work * JACOBIAN_PAIR
+                            + s_tables * kept * BACKWARD_PAIR
+                            + nodes as f64 * trial.texel_count() as f64 * BACKWARD_PAIR
+                            + n * INTERP_PAIRS
+                    });
+                if best.0.table == Some(r) && best.0.env_factor == f && best.2 - cost < trial_work {
+                    trace(
+                        &format!("table{r}+keep{k} (f {f}): saves less than its trial"),
+                        t0,
+                    );
+                    i += 1;
+                    continue;
+                }
                 if spend > budget {
                     trace(
                         &format!(

@@ -73,14 +73,72 @@ impl Grid {
     fn stencil(&self, u: f64, v: f64) -> ([usize; 2], [[f32; 4]; 2]) {
         let h = self.spacing();
         let axis = |x: f64| {
-            let t = (x + self.extent) / h;
-            let c = (t.floor().max(0.0) as usize).min(self.r - 2);
+            let (c, t) = self.first(x, h);
             (c, catmull_rom(t - c as f64))
         };
         let (cu, wu) = axis(u);
         let (cv, wv) = axis(v);
         // node c - 1 of the grid is node c of the margined one
         ([cu, cv], [wu, wv])
+    }
+
+    /// Along one axis: the stencil's first node and the coordinate in node spacings `h`.
+    fn first(&self, x: f64, h: f64) -> (usize, f64) {
+        let t = (x + self.extent) / h;
+        ((t.floor().max(0.0) as usize).min(self.r - 2), t)
+    }
+}
+
+/// The tabled pixels' stereographic coordinates, to count the nodes of grids of several
+/// resolutions over the same pixels (the choice's cost model) without making their tables.
+pub(crate) struct Footprint {
+    uv: Vec<(f64, f64)>,
+    left: usize,
+    extent: f64,
+}
+
+impl Footprint {
+    pub fn new(pixels: &[PixelRec]) -> Self {
+        let (mut uv, mut left) = (Vec::with_capacity(pixels.len()), 0);
+        for p in pixels {
+            match stereo(p) {
+                Some(x) => uv.push(x),
+                None => left += 1,
+            }
+        }
+        let extent = uv
+            .iter()
+            .fold(1e-3f64, |m, &(u, v)| m.max(u.abs()).max(v.abs()));
+        Footprint { uv, left, extent }
+    }
+
+    /// How many nodes the table of resolution `r` over these pixels has ([`Grid::new`]'s
+    /// extent), and how many pixels it leaves to per-pixel evaluation: each pixel flags its stencil's first node, and a node is used where a
+    /// flagged one is at most 3 before it along each axis (the 4 x 4 stencil).
+    pub fn count(&self, r: usize) -> (usize, usize) {
+        let grid = Grid {
+            r,
+            extent: self.extent,
+        };
+        let (side, h) = (grid.side(), grid.spacing());
+        let mut first = vec![false; side * side];
+        for &(u, v) in &self.uv {
+            let (cu, cv) = (grid.first(u, h).0, grid.first(v, h).0);
+            first[cv * side + cu] = true;
+        }
+        let mut rows = vec![false; side * side];
+        for (row, out) in first.chunks(side).zip(rows.chunks_mut(side)) {
+            for (i, o) in out.iter_mut().enumerate() {
+                *o = row[i.saturating_sub(3)..=i].iter().any(|&f| f);
+            }
+        }
+        let mut used = 0;
+        for j in 0..side {
+            for i in 0..side {
+                used += usize::from((j.saturating_sub(3)..=j).any(|b| rows[b * side + i]));
+            }
+        }
+        (used, self.left)
     }
 }
 
@@ -171,21 +229,6 @@ impl Table {
         }
     }
 
-    /// How many nodes the table of `grid` over `pixels` has, and how many of the pixels it
-    /// leaves to per-pixel evaluation.
-    pub fn count(grid: &Grid, pixels: &[PixelRec]) -> (usize, usize) {
-        let side = grid.side();
-        let mut used = vec![false; side * side];
-        let mut left = 0;
-        for p in pixels {
-            match grid.place(p) {
-                Some((at, _)) => grid.mark(&mut used, at),
-                None => left += 1,
-            }
-        }
-        (used.iter().filter(|&&u| u).count(), left)
-    }
-
     /// The nodes as the pixels of a scene with `base`'s lights, in one row.
     pub fn nodes_scene(&self, base: &Prepared) -> Prepared {
         let pixels = self
@@ -248,6 +291,41 @@ impl Table {
             for a in 0..3 {
                 out[c.index][a] += acc[a];
             }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn footprint_counts_as_the_tables_do() {
+        // normals over the front hemisphere and some behind it (left per pixel), a few
+        // not unit length
+        let mut z = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            z ^= z << 13;
+            z ^= z >> 7;
+            z ^= z << 17;
+            (z >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let pixels: Vec<PixelRec> = (0..5000)
+            .map(|i| {
+                let (a, b) = (next() * std::f64::consts::TAU, next() * 2.0 - 1.0);
+                let s = (1.0 - b * b).sqrt();
+                let n = [s * a.cos(), s * a.sin(), b * 0.9 + 0.1];
+                let l = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+                let k = if i % 97 == 0 { 1.1 } else { 1.0 / l };
+                PixelRec::new(i, n.map(|x| x * k), [0.0, 0.0, 1.0])
+            })
+            .collect();
+        let fp = Footprint::new(&pixels);
+        for r in [4, 16, 32, 96, 256] {
+            let table = Table::new(&Grid::new(r, &pixels), &pixels);
+            let counted = (table.normals.len(), table.left.len());
+            assert_eq!(fp.count(r), counted, "r = {r}");
+            assert!(counted.0 > 0 && counted.1 > 0);
         }
     }
 }
