@@ -816,13 +816,11 @@ pub(crate) fn choose_plan<'a>(
                 // cost; not worth a trial that costs more (on the 512 sphere with
                 // plastic-red, keeping none instead of 16 texels would save 0.2% of the
                 // exact layer's work, and its trial cost 4%)
-                let trial_work = spend
-                    + backward.then_some(1.0).map_or(0.0, |_| {
-                        node_work * JACOBIAN_PAIR
-                            + s_tables * kept * BACKWARD_PAIR
-                            + nodes as f64 * trial.texel_count() as f64 * BACKWARD_PAIR
-                            + n * INTERP_PAIRS
-                    });
+                // the dLoss/dn trial, and the sums' on every pixel for the sampled texels
+                // (the table's nodes and the kept texels; the exact side charged once)
+                let dn_work = node_work * JACOBIAN_PAIR + s_tables * kept * BACKWARD_PAIR;
+                let sums_work = nodes as f64 * texels * BACKWARD_PAIR + n * INTERP_PAIRS;
+                let trial_work = spend + if backward { dn_work + sums_work } else { 0.0 };
                 if best.0.table == Some(r) && best.0.env_factor == f && best.2 - cost < trial_work {
                     trace(
                         &format!("table{r}+keep{k} (f {f}): saves less than its trial"),
@@ -847,18 +845,13 @@ pub(crate) fn choose_plan<'a>(
                 let e = trial.estimate(&m, tol, chooser)?;
                 trace(&format!("{m}: {e:?}"), t);
                 if e.d_normals.is_some() {
-                    budget -= node_work * JACOBIAN_PAIR + s_tables * kept * BACKWARD_PAIR;
+                    budget -= dn_work;
                 }
                 if let Some(e_env) = e.d_env {
                     env_errors.insert((f, r), e_env);
-                }
-                if e.d_env.is_some() {
-                    // the texels' trial: the table's nodes and the kept texels on every pixel
-                    let texels = trial.texel_count() as f64;
                     let first_time = if texels_charged { 0.0 } else { n * texels };
                     texels_charged = true;
-                    budget -=
-                        (nodes as f64 * texels + first_time) * BACKWARD_PAIR + n * INTERP_PAIRS;
+                    budget -= sums_work + first_time * BACKWARD_PAIR;
                 }
                 if e.scaled(chooser) <= tol {
                     best = (m, e, cost);

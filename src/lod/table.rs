@@ -24,10 +24,7 @@ pub(crate) struct Grid {
 impl Grid {
     /// The grid of resolution `r` over the tabled pixels' footprint.
     pub fn new(r: usize, pixels: &[PixelRec]) -> Self {
-        let extent = pixels
-            .iter()
-            .filter_map(stereo)
-            .fold(1e-3f64, |m, (u, v)| m.max(u.abs()).max(v.abs()));
+        let extent = extent(pixels.iter().filter_map(stereo));
         Grid { r, extent }
     }
 
@@ -106,15 +103,14 @@ impl Footprint {
                 None => left += 1,
             }
         }
-        let extent = uv
-            .iter()
-            .fold(1e-3f64, |m, &(u, v)| m.max(u.abs()).max(v.abs()));
+        let extent = extent(uv.iter().copied());
         Footprint { uv, left, extent }
     }
 
     /// How many nodes the table of resolution `r` over these pixels has ([`Grid::new`]'s
-    /// extent), and how many pixels it leaves to per-pixel evaluation: each pixel flags its stencil's first node, and a node is used where a
-    /// flagged one is at most 3 before it along each axis (the 4 x 4 stencil).
+    /// extent), and how many pixels it leaves to per-pixel evaluation: each pixel flags its
+    /// stencil's first node, and a node is used where a flagged one is at most 3 before it
+    /// along each axis (the 4 x 4 stencil).
     pub fn count(&self, r: usize) -> (usize, usize) {
         let grid = Grid {
             r,
@@ -140,6 +136,11 @@ impl Footprint {
         }
         (used, self.left)
     }
+}
+
+/// The grid's half-width over stereographic coordinates: their largest |u| or |v|.
+fn extent(uv: impl Iterator<Item = (f64, f64)>) -> f64 {
+    uv.fold(1e-3f64, |m, (u, v)| m.max(u.abs()).max(v.abs()))
 }
 
 /// The pixel's stereographic coordinates, if it can be tabled.
