@@ -39,6 +39,21 @@ fn render(r: &Renderer, b: &Batch, light: Light) -> Image {
         .remove(0)
 }
 
+fn backward(r: &Renderer, b: &Batch, up: &Image, light: Light) -> matedit::Gradients {
+    supersample::backward(
+        r,
+        b,
+        std::slice::from_ref(up),
+        &Accuracy::Exact,
+        light,
+        Wanted::ALL,
+        &[],
+    )
+    .expect("gradients")
+    .0
+    .remove(0)
+}
+
 /// max |a - b| / max b.
 fn rel(a: &Image, b: &Image) -> f64 {
     let d = a
@@ -106,18 +121,7 @@ fn gradients_are_the_adjoint() {
         pixels: (0..n).map(|i| [1.0, (i % 7) as f32 / 7.0, 0.5]).collect(),
     };
     let loss = |b: &Batch| -> f64 { inner(&render(&r, b, light).pixels, &up.pixels) };
-    let g = supersample::backward(
-        &r,
-        &b,
-        std::slice::from_ref(&up),
-        &Accuracy::Exact,
-        light,
-        Wanted::ALL,
-        &[],
-    )
-    .unwrap()
-    .0
-    .remove(0);
+    let g = backward(&r, &b, &up, light);
     // the layer is linear in L: the loss of L + dL is the loss of L plus d_env . dL
     let mut env = sky();
     let mut expected = 0.0;
@@ -287,4 +291,71 @@ fn inner(a: &[[f32; 3]], b: &[[f32; 3]]) -> f64 {
                 .sum::<f64>()
         })
         .sum()
+}
+
+/// The corrections' scenes hold lights of negated radiance (the texels' point lights):
+/// the fast CPU path and the GPU path (lavapipe in CI; skipped without an adapter unless
+/// MATEDIT_REQUIRE_GPU=1) give the f64 reference's image and gradients.
+#[test]
+fn every_backend_gives_the_references_corrections() {
+    let b = scene("red-specular-plastic", sky());
+    let light = Light::Level(2);
+    let up = Image {
+        width: 40,
+        height: 40,
+        pixels: (0..40 * 40)
+            .map(|i| [1.0, (i % 7) as f32 / 7.0 - 0.5, 0.5])
+            .collect(),
+    };
+    let run = |r: &Renderer| (render(r, &b, light), backward(r, &b, &up, light));
+    let reference = run(&Renderer::new(Device::Reference).unwrap());
+    let layer = Renderer::new(Device::Reference)
+        .unwrap()
+        .render(&b)
+        .unwrap()
+        .remove(0);
+    // the level changes the image: the corrections are compared, not only the layer
+    assert!(
+        rel(&reference.0, &layer) > 1e-3,
+        "{}",
+        rel(&reference.0, &layer)
+    );
+    let mut renderers = vec![("cpu", Renderer::new(Device::Cpu).unwrap())];
+    match Renderer::new(Device::Gpu) {
+        Ok(r) => renderers.push(("gpu", r)),
+        Err(e) if std::env::var("MATEDIT_REQUIRE_GPU").as_deref() == Ok("1") => {
+            panic!("MATEDIT_REQUIRE_GPU=1 but no GPU: {e}")
+        }
+        Err(e) => eprintln!("SKIPPED the GPU path: {e}"),
+    }
+    let max_rel = |a: &[[f32; 3]], b: &[[f32; 3]]| {
+        let scale = b
+            .iter()
+            .flatten()
+            .fold(0.0f64, |m, &v| m.max(f64::from(v).abs()));
+        let diff = a
+            .iter()
+            .flatten()
+            .zip(b.iter().flatten())
+            .fold(0.0f64, |m, (&x, &y)| m.max(f64::from(x - y).abs()));
+        diff / scale
+    };
+    for (name, r) in &renderers {
+        let (image, g) = run(r);
+        let (want_image, want) = &reference;
+        let e = [
+            max_rel(&image.pixels, &want_image.pixels),
+            max_rel(&g.d_env, &want.d_env),
+            max_rel(&g.d_normals, &want.d_normals),
+        ];
+        assert!(e[0] < 1e-5 && e[1] < 1e-4 && e[2] < 1e-4, "{name}: {e:?}");
+        let ctrl = g.d_ctrl.iter().zip(&want.d_ctrl);
+        let scale = want.d_ctrl.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+        for (i, (x, y)) in ctrl.enumerate() {
+            assert!(
+                (x - y).abs() <= 1e-4 * scale,
+                "{name}: d_ctrl[{i}] {x} vs {y}"
+            );
+        }
+    }
 }

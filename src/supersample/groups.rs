@@ -22,7 +22,7 @@ pub const MAX_RADIUS: usize = 8;
 const WIDTHS: f64 = 3.0;
 /// Pixels whose peaks fall in the same CELL x CELL block of texels form one group.
 const CELL: usize = 4;
-/// Groups per call of the backend.
+/// Groups (each one scene) per call of the backend.
 const CHUNK: usize = 64;
 
 /// The narrowest angular width, in light directions, of the sharpest lobe of a pixel at
@@ -134,14 +134,15 @@ fn neighbourhood(env: &EnvMap, cell: (usize, usize), radius: usize) -> Vec<usize
     out
 }
 
-/// One group's texels, and its scenes: the texels as s x s sub-texels, then as points.
+/// One group's texels, and its scene: the texels as s x s sub-texels, then as points of
+/// negated radiance, so that the scene's image is what the split adds.
 fn group(
     prep: &Prepared,
     env: &EnvMap,
     detail: Option<&EnvMap>,
     key: Key,
     pixels: &[&PixelRec],
-) -> Option<(Group, [Prepared; 2])> {
+) -> Option<(Group, Prepared)> {
     let texels = neighbourhood(env, key.cell, key.radius);
     if texels.is_empty() {
         return None;
@@ -152,18 +153,19 @@ fn group(
         .enumerate()
         .map(|(k, p)| PixelRec { index: k, ..**p })
         .collect();
-    let (mut area, mut point) = (Vec::new(), Vec::new());
-    let mut rho = Vec::with_capacity(texels.len() * s * s);
+    let ss = texels.len() * s * s;
+    let (mut area, mut point) = (Vec::with_capacity(ss + texels.len()), Vec::new());
+    let mut rho = Vec::with_capacity(ss);
     for (t, &i) in texels.iter().enumerate() {
         let (r, c) = (i / env.width, i % env.width);
         let l = env.texels[i].map(f64::from);
         let shares = detail.map(|d| shares(d, env.height, r, c, s));
         let (w, d_omega) = Convention::Equirect.texel(r, c, env.height, env.width);
         point.push(Light {
-            index: t,
+            index: ss + t,
             w,
             d_omega,
-            l,
+            l: l.map(|v| -v),
         });
         for a in 0..s {
             for b in 0..s {
@@ -180,19 +182,17 @@ fn group(
             }
         }
     }
-    let n = local.len();
-    let scene = |lights: &[Light]| {
-        Prepared::from_lights(
-            n,
-            1,
-            local.clone(),
-            1,
-            lights.len(),
-            lights,
-            &prep.ctrl,
-            prep.camera,
-        )
-    };
+    area.extend(point);
+    let scene = Prepared::from_lights(
+        local.len(),
+        1,
+        local,
+        1,
+        area.len(),
+        &area,
+        &prep.ctrl,
+        prep.camera,
+    );
     Some((
         Group {
             pixels: pixels.iter().map(|p| p.index).collect(),
@@ -200,11 +200,11 @@ fn group(
             split: s,
             rho,
         },
-        [scene(&area), scene(&point)],
+        scene,
     ))
 }
 
-/// One group: its pixels, its texels, and the two scenes whose difference it adds.
+/// One group: its pixels, its texels, and the scene whose image it adds.
 struct Group {
     /// Image index of each of the group's pixels (local pixel k is `pixels[k]`).
     pixels: Vec<usize>,
@@ -268,7 +268,7 @@ fn shares(detail: &EnvMap, height: usize, r: usize, c: usize, s: usize) -> Vec<[
 /// What a level adds to the layer on a scene's pixels.
 pub struct Corrections {
     groups: Vec<Group>,
-    /// Per group, the area-light scene then the point-light scene.
+    /// Per group, its sub-texels and its texels' negated point lights in one scene.
     scenes: Vec<Prepared>,
 }
 
@@ -290,17 +290,10 @@ impl Corrections {
                 by_key.entry(k).or_default().push(p);
             }
         }
-        let built: Vec<(Group, [Prepared; 2])> = by_key
+        let (groups, scenes) = by_key
             .into_par_iter()
             .filter_map(|(key, pixels)| group(prep, env, detail, key, &pixels))
-            .collect();
-        let mut groups = Vec::with_capacity(built.len());
-        let mut scenes = Vec::with_capacity(2 * built.len());
-        for (g, [area, point]) in built {
-            groups.push(g);
-            scenes.push(area);
-            scenes.push(point);
-        }
+            .unzip();
         Corrections { groups, scenes }
     }
 
@@ -343,16 +336,16 @@ impl Corrections {
         }
         let images: Vec<Image> = self
             .scenes
-            .par_chunks(2 * CHUNK)
+            .par_chunks(CHUNK)
             .map(|c| backend.render_prepared(c))
             .collect::<Result<Vec<_>>>()?
             .into_iter()
             .flatten()
             .collect();
-        for (g, pair) in self.groups.iter().zip(images.chunks(2)) {
+        for (g, add) in self.groups.iter().zip(&images) {
             for (k, &i) in g.pixels.iter().enumerate() {
                 for ch in 0..3 {
-                    image.pixels[i][ch] += pair[0].pixels[k][ch] - pair[1].pixels[k][ch];
+                    image.pixels[i][ch] += add.pixels[k][ch];
                 }
             }
         }
@@ -373,45 +366,46 @@ impl Corrections {
         let ups: Vec<Image> = self
             .groups
             .iter()
-            .flat_map(|g| {
+            .map(|g| {
                 let pixels: Vec<[f32; 3]> = g.pixels.iter().map(|&i| upstream.pixels[i]).collect();
-                let up = Image {
+                Image {
                     width: pixels.len(),
                     height: 1,
                     pixels,
-                };
-                [up.clone(), up]
+                }
             })
             .collect();
         let gs: Vec<Gradients> = self
             .scenes
-            .par_chunks(2 * CHUNK)
-            .zip(ups.par_chunks(2 * CHUNK))
+            .par_chunks(CHUNK)
+            .zip(ups.par_chunks(CHUNK))
             .map(|(c, u)| backend.backward_prepared(c, u))
             .collect::<Result<Vec<_>>>()?
             .into_iter()
             .flatten()
             .collect();
-        for (g, pair) in self.groups.iter().zip(gs.chunks(2)) {
-            let (area, point) = (&pair[0], &pair[1]);
+        for (g, add) in self.groups.iter().zip(&gs) {
             for (k, &i) in g.pixels.iter().enumerate() {
                 for ax in 0..3 {
-                    grads.d_normals[i][ax] += area.d_normals[k][ax] - point.d_normals[k][ax];
+                    grads.d_normals[i][ax] += add.d_normals[k][ax];
                 }
             }
+            // the point lights' radiance is the texel's negated: their dLoss/dL with the
+            // sign turned
             let ss = g.split * g.split;
+            let (area, point) = add.d_env.split_at(g.texels.len() * ss);
             for (t, &i) in g.texels.iter().enumerate() {
                 for ch in 0..3 {
-                    let sub: f32 = area.d_env[t * ss..(t + 1) * ss]
+                    let sub: f32 = area[t * ss..(t + 1) * ss]
                         .iter()
                         .zip(&g.rho[t * ss..(t + 1) * ss])
                         .map(|(d, rho)| d[ch] * rho[ch])
                         .sum();
-                    grads.d_env[i][ch] += sub - point.d_env[t][ch];
+                    grads.d_env[i][ch] += sub - point[t][ch];
                 }
             }
-            for (c, d) in grads.d_ctrl.iter_mut().enumerate() {
-                *d += area.d_ctrl[c] - point.d_ctrl[c];
+            for (d, a) in grads.d_ctrl.iter_mut().zip(&add.d_ctrl) {
+                *d += a;
             }
         }
         Ok(())
