@@ -1122,3 +1122,54 @@ fn backward_within_tries_no_table_when_the_finest_misses_dl() {
     let (_, loose) = ALWAYS.backward_within(&cpu, &scene, &up, 0.1).unwrap();
     assert!(loose.trials > 1, "{loose:?}");
 }
+
+/// `Chooser::estimate` judges every output of a table, on the samples the choice uses: errors
+/// of the same order as the ones measured on every pixel (not above them by much, not far
+/// below); a per-pixel method's image alone, and without an upstream gradient no gradient.
+#[test]
+fn the_estimate_of_a_method_judges_every_output() {
+    let cpu = FastCpu::new().unwrap();
+    let scene = sphere_scene(96, smooth_env(16, 32, Convention::Equirect, 3), glossy());
+    let up = upstream(&scene, 5);
+    let chooser = lod::Chooser::default();
+    let blocks = chooser
+        .estimate(&cpu, &scene, &method("env2"), None)
+        .unwrap();
+    assert!(
+        blocks.image > 0.0 && blocks.d_normals.is_none(),
+        "{blocks:?}"
+    );
+    let m = method("table16");
+    let e = chooser.estimate(&cpu, &scene, &m, Some(&up)).unwrap();
+    let got = errors(
+        &run(&cpu, &scene, &up, &m),
+        &run(&cpu, &scene, &up, &Method::EXACT),
+    );
+    let est = [
+        e.image,
+        e.d_env.unwrap(),
+        e.d_normals.unwrap(),
+        e.d_ctrl.unwrap(),
+    ];
+    for (k, (g, x)) in got.iter().zip(est).enumerate() {
+        assert!(
+            *g > 0.0 && x > 0.0,
+            "output {k}: measured {g:e}, estimated {x:e}"
+        );
+        assert!(
+            x <= 1.5 * g,
+            "output {k}: estimated {x:e} above measured {g:e}"
+        );
+        assert!(
+            x * 10.0 >= *g,
+            "output {k}: estimated {x:e}, measured {g:e}"
+        );
+    }
+    assert!(
+        chooser
+            .estimate(&cpu, &scene, &method("table16"), None)
+            .unwrap()
+            .d_env
+            .is_none()
+    );
+}
