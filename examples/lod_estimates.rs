@@ -137,7 +137,7 @@ fn main() -> Result<(), String> {
     for (k, name) in names.iter().enumerate() {
         let v = &mut ratios[k];
         v.sort_by(f64::total_cmp);
-        if let (Some(max), false) = (v.last(), v.is_empty()) {
+        if let Some(max) = v.last() {
             println!(
                 "{name:10} measured / estimated over {} cases: median {:.2}, largest {:.2}",
                 v.len(),
