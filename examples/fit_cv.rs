@@ -6,7 +6,7 @@
 //!     [--envmaps ../shared/data/envmaps] [--set held-out|tuning|all] [--limit N]
 //!     [--maps studio,...]
 //!     [--methods current,joint,new,oracle] [--tolerance REL (new only)] [--sphere 64] [--env-size 64x128]
-//!     [--cache DIR]
+//!     [--cache DIR] [--oracle-steps N]
 //! ```
 //!
 //! The split is fixed: the materials of the NBRDF file sorted by name, every third one
@@ -89,6 +89,7 @@ struct Args {
     sphere: usize,
     env_size: (usize, usize),
     cache: Option<PathBuf>,
+    oracle_steps: usize,
 }
 
 fn args() -> Result<Args, String> {
@@ -104,6 +105,7 @@ fn args() -> Result<Args, String> {
         sphere: 64,
         env_size: (64, 128),
         cache: None,
+        oracle_steps: ORACLE_STEPS,
     };
     let mut it = std::env::args().skip(1);
     while let Some(flag) = it.next() {
@@ -136,6 +138,9 @@ fn args() -> Result<Args, String> {
             "--sphere" => a.sphere = value()?.parse().map_err(|e| format!("--sphere: {e}"))?,
             "--env-size" => a.env_size = maps::env_size(&value()?)?,
             "--cache" => a.cache = Some(value()?.into()),
+            "--oracle-steps" => {
+                a.oracle_steps = value()?.parse().map_err(|e| format!("--oracle-steps: {e}"))?
+            }
             other => return Err(format!("unknown option {other}")),
         }
     }
@@ -225,7 +230,7 @@ fn under_maps(
     Batch::new(scenes).map_err(|e| e.to_string())
 }
 
-/// Adam steps of the oracle.
+/// Adam steps of the oracle (`--oracle-steps`).
 const ORACLE_STEPS: usize = 150;
 
 /// The oracle: `material` moved by Adam through the layer towards the measured images
@@ -240,6 +245,7 @@ fn oracle(
     normals: &NormalMap,
     mask: &[bool],
     refs: &[Image],
+    steps: usize,
 ) -> Result<Material, String> {
     use matedit::material::{MAX_ABS_SCALE, MAX_EXPONENT, N_PARAMS, idx};
     let err = |e: matedit::Error| e.to_string();
@@ -288,7 +294,7 @@ fn oracle(
     };
     let mut adam = matedit::edit::adam::Adam::new(N_PARAMS);
     let mut best = (material.clone(), f64::INFINITY);
-    for step in 0..=ORACLE_STEPS {
+    for step in 0..=steps {
         let m = of(&x)?;
         let batch = under_maps(&m, maps, normals)?;
         let images = renderer.render(&batch).map_err(err)?;
@@ -315,7 +321,7 @@ fn oracle(
         if loss < best.1 {
             best = (m.clone(), loss);
         }
-        if step == ORACLE_STEPS {
+        if step == steps {
             break;
         }
         let (grads, _) = renderer
@@ -327,7 +333,7 @@ fn oracle(
                 if exponent[i] { d * m.ctrl[i] } else { d }
             })
             .collect();
-        let decay = 0.1f64.powf(step as f64 / ORACLE_STEPS as f64);
+        let decay = 0.1f64.powf(step as f64 / steps as f64);
         let rates: Vec<f64> = (0..N_PARAMS)
             .map(|i| if exponent[i] { 0.03 } else { 0.01 } * decay)
             .collect();
@@ -449,7 +455,7 @@ fn run() -> Result<(), String> {
         let fits = if method == Method::Oracle {
             let refine = |((m, lobes, t), refs): (&(Material, usize, f64), &Vec<Image>)| {
                 let start = Instant::now();
-                let m = oracle(m, &maps, &normals, &mask, refs)?;
+                let m = oracle(m, &maps, &normals, &mask, refs, a.oracle_steps)?;
                 Ok((m, *lobes, t + start.elapsed().as_secs_f64()))
             };
             fits.par_iter()

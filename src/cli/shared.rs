@@ -53,7 +53,7 @@ pub struct SceneArgs {
     /// Material JSON file: {"name": ..., "ctrl": [108 numbers]}.
     #[arg(long, value_name = "FILE", conflicts_with = "preset")]
     pub material: Option<PathBuf>,
-    /// A built-in material (see `matedit presets`) [default: plastic-red].
+    /// A built-in material (see `matedit presets`) [default: red-specular-plastic].
     #[arg(long, value_name = "NAME", value_parser = clap::builder::PossibleValuesParser::new(matedit::presets::names()))]
     pub preset: Option<String>,
     /// Perspective camera with this vertical field of view in degrees [default: orthographic].

@@ -1,7 +1,9 @@
 //! Host side of shaders/backward_texel.wgsl, reduce_ctrl.wgsl and backward_normal.wgsl.
 
 use super::buffers::{ParamsTable, Slot};
-use super::forward::{Input, bases, batch_params, encode_per_pixel, range_of, tiled};
+use super::forward::{
+    Input, Texels, bases, batch_params, encode_per_pixel, range_of, storage_texels, tiled,
+};
 use super::layout::{Params, Pixel, Texel};
 use super::pixels::Selection;
 use super::plan::SHARE_BYTES;
@@ -11,14 +13,6 @@ use crate::error::Result;
 use crate::material::N_PARAMS;
 use crate::prepare::Prepared;
 use crate::scene::{Gradients, Image, Wanted};
-
-/// The GPU records of a scene's texels.
-fn texel_records(prep: &Prepared) -> Vec<Texel> {
-    prep.texels
-        .iter()
-        .map(|t| Texel::new(t, &prep.active_lobes))
-        .collect()
-}
 
 /// Readback slots of one scene's dLoss/dL (first and last) and dLoss/dctrl.
 type TexelSlots = (Slot, Slot, Slot);
@@ -50,8 +44,8 @@ fn encode_texel(
     // also reduce_ctrl's: the shares of scene z are its n_texels from its texel_base
     let offset = table.push_scenes(&scenes);
     let params = sub.params(&table);
-    let records: Vec<Texel> = inputs.iter().flat_map(|i| texel_records(i.prep)).collect();
-    let tex = sub.storage("texels", &records);
+    let preps: Vec<&Prepared> = inputs.iter().map(|i| i.prep).collect();
+    let tex = storage_texels(sub, "texels", &preps, Texels::All)?;
     let n_active: usize = na.iter().sum();
     let bytes = (n_active * size_of::<Pixel>()) as u64;
     let pix = sub.upload_pixels("pixels", wgpu::BufferUsages::STORAGE, active, bytes)?;
@@ -113,16 +107,14 @@ fn encode_texel_scene(
     active: &Selection<'_>,
     sub: &mut Submission<'_>,
 ) -> Result<TexelSlots> {
-    let texels = texel_records(prep);
+    let n_texels = prep.texels.len();
     let n_active = active.len();
-    let shape = r
-        .planner
-        .gather(Pass::BackwardTexel, texels.len(), n_active);
+    let shape = r.planner.gather(Pass::BackwardTexel, n_texels, n_active);
     let inner = shape.inner_ranges();
     let (pix, pix_at) = tiled::<Pixel>(r, sub, n_active, &inner, |sub, usage, bytes| {
         sub.upload_pixels("pixels", usage, std::slice::from_ref(active), bytes)
     })?;
-    let tex = sub.storage("texels", &texels);
+    let tex = storage_texels(sub, "texels", &[prep], Texels::All)?;
     // with no texels no range reduces into it
     let d_ctrl = sub.zeroed("d_ctrl", SHARE_BYTES);
     let base = Params::for_scene(prep);

@@ -4,7 +4,9 @@ use super::buffers::{MIN_BYTES, ParamsTable, Slot};
 use super::layout::{CHUNK_BYTES, Params, Pixel, Texel};
 use super::pipelines::Tiles;
 use super::pixels::{Selection, Source};
-use super::submission::{Submission, write_records};
+use rayon::prelude::*;
+
+use super::submission::Submission;
 use super::{GpuRenderer, Pass};
 use crate::error::Result;
 use crate::prepare::Prepared;
@@ -20,12 +22,85 @@ pub struct Input<'a> {
     pub source: Source<'a>,
 }
 
-/// The lit texels of a scene as GPU records.
-fn lit_texels(prep: &Prepared) -> Vec<Texel> {
-    prep.lit
-        .iter()
-        .map(|&i| Texel::new(&prep.texels[i], &prep.active_lobes))
-        .collect()
+/// Which of a scene's texels a pass reads: the lit ones (the per-pixel passes) or all
+/// (backward_texel, whose dLoss/dL covers every texel).
+#[derive(Clone, Copy)]
+pub(super) enum Texels {
+    Lit,
+    All,
+}
+
+impl Texels {
+    /// How many of `prep`'s texels.
+    pub(super) fn count(self, prep: &Prepared) -> usize {
+        match self {
+            Texels::Lit => prep.lit.len(),
+            Texels::All => prep.texels.len(),
+        }
+    }
+
+    /// `prep`'s `k`-th such texel as a GPU record.
+    fn record(self, prep: &Prepared, k: usize) -> Texel {
+        let i = match self {
+            Texels::Lit => prep.lit[k],
+            Texels::All => k,
+        };
+        Texel::new(&prep.texels[i], &prep.active_lobes)
+    }
+}
+
+/// Texel records per task of [`upload_texels`].
+const TEXEL_BLOCK: usize = 1024;
+
+/// A buffer for `usage` of `bytes` (at least the records') holding the records of `which`
+/// texels of each of `preps`, one scene after another, computed on all cores straight
+/// into the staging buffer: the continuous light's corrections hand the GPU hundreds of
+/// scenes of thousands of lights each, whose records (256 bytes each) were most of a call.
+pub(super) fn upload_texels(
+    sub: &mut Submission<'_>,
+    label: &'static str,
+    usage: wgpu::BufferUsages,
+    bytes: u64,
+    preps: &[&Prepared],
+    which: Texels,
+) -> Result<wgpu::Buffer> {
+    const BYTES: usize = size_of::<Texel>();
+    sub.upload_with(label, usage, bytes, |out| {
+        // one slot a record (a sized array: what crosses threads), in blocks of records
+        let n: usize = preps.iter().map(|p| which.count(p)).sum();
+        let mut slots = out
+            .into_slice(..n * BYTES)
+            .into_chunks::<BYTES>()
+            .0
+            .into_iter();
+        let mut blocks = Vec::new();
+        for &prep in preps {
+            let count = which.count(prep);
+            for first in (0..count).step_by(TEXEL_BLOCK) {
+                let len = TEXEL_BLOCK.min(count - first);
+                let block: Vec<wgpu::WriteOnly<'_, [u8; BYTES]>> =
+                    slots.by_ref().take(len).collect();
+                blocks.push((prep, first, block));
+            }
+        }
+        blocks.into_par_iter().for_each(|(prep, first, block)| {
+            for (k, slot) in block.into_iter().enumerate() {
+                slot.write(bytemuck::cast(which.record(prep, first + k)));
+            }
+        });
+    })
+}
+
+/// [`upload_texels`] into a storage buffer of just the records.
+pub(super) fn storage_texels(
+    sub: &mut Submission<'_>,
+    label: &'static str,
+    preps: &[&Prepared],
+    which: Texels,
+) -> Result<wgpu::Buffer> {
+    let n: usize = preps.iter().map(|p| which.count(p)).sum();
+    let bytes = ((n * size_of::<Texel>()) as u64).max(MIN_BYTES);
+    upload_texels(sub, label, wgpu::BufferUsages::STORAGE, bytes, preps, which)
 }
 
 /// Per scene, the start of each scene's records when `counts` records are concatenated.
@@ -119,15 +194,13 @@ pub(super) fn encode_per_pixel(
     sels: &[Selection<'_>],
     sub: &mut Submission<'_>,
 ) -> Result<Vec<(Slot, Slot)>> {
-    let lit: Vec<Vec<Texel>> = inputs.iter().map(|i| lit_texels(i.prep)).collect();
     let np: Vec<usize> = sels.iter().map(Selection::len).collect();
-    let nl: Vec<usize> = lit.iter().map(Vec::len).collect();
+    let nl: Vec<usize> = inputs.iter().map(|i| Texels::Lit.count(i.prep)).collect();
     let Some(shape) = r.planner.batch(pass, &np, &nl) else {
         return inputs
             .iter()
             .zip(sels)
-            .zip(&lit)
-            .map(|((input, sel), lit)| encode_scene(r, pass, input.prep, sel, lit, sub))
+            .map(|(input, sel)| encode_scene(r, pass, input.prep, sel, sub))
             .collect();
     };
     let pixel_base = bases(&np);
@@ -136,7 +209,8 @@ pub(super) fn encode_per_pixel(
     let mut table = ParamsTable::default();
     let offset = table.push_scenes(&scenes);
     let params = sub.params(&table);
-    let tex = sub.storage("lit texels", &lit.concat());
+    let preps: Vec<&Prepared> = inputs.iter().map(|i| i.prep).collect();
+    let tex = storage_texels(sub, "lit texels", &preps, Texels::Lit)?;
     let bytes = (total * size_of::<Pixel>()) as u64;
     let pix = sub.upload_pixels("pixels", wgpu::BufferUsages::STORAGE, sels, bytes)?;
     let parts = sub.output(pass.name(), (total * 16) as u64 * shape.slices as u64);
@@ -169,14 +243,14 @@ fn encode_scene(
     pass: Pass,
     prep: &Prepared,
     sel: &Selection<'_>,
-    lit: &[Texel],
     sub: &mut Submission<'_>,
 ) -> Result<(Slot, Slot)> {
     let n_pixels = sel.len();
-    let shape = r.planner.gather(pass, n_pixels, lit.len());
+    let n_lit = Texels::Lit.count(prep);
+    let shape = r.planner.gather(pass, n_pixels, n_lit);
     let inner = shape.inner_ranges();
-    let (texels, tex_at) = tiled::<Texel>(r, sub, lit.len(), &inner, |sub, usage, bytes| {
-        sub.upload_with("lit texels", usage, bytes, |out| write_records(out, lit))
+    let (texels, tex_at) = tiled::<Texel>(r, sub, n_lit, &inner, |sub, usage, bytes| {
+        upload_texels(sub, "lit texels", usage, bytes, &[prep], Texels::Lit)
     })?;
     let bytes = (n_pixels * size_of::<Pixel>()) as u64;
     let pix = sub.upload_pixels(
@@ -229,7 +303,7 @@ fn encode_scene(
             .zip(&offsets)
             .map(|(bg, &off)| (bg, off, shape.groups(n)))
             .collect();
-        sub.compute(pass, n as u64 * lit.len() as u64, &dispatches);
+        sub.compute(pass, (n * n_lit) as u64, &dispatches);
         let out = if shape.slices > 1 {
             sub.reduce_slices(base, &parts, n, shape.slices)
         } else {

@@ -12,12 +12,6 @@ use super::plan::Dispatch;
 use super::{GpuRenderer, PassTiming};
 use crate::error::{Error, Result};
 
-/// Writes `records` at the start of `out`.
-pub fn write_records<T: bytemuck::Pod>(out: wgpu::WriteOnly<'_, [u8]>, records: &[T]) {
-    let bytes: &[u8] = bytemuck::cast_slice(records);
-    out.into_slice(..bytes.len()).copy_from_slice(bytes);
-}
-
 /// What a call recorded: per-pass timings (empty without timestamps) and the dispatches.
 #[derive(Clone, Debug, Default)]
 pub struct LastRun {
@@ -102,19 +96,6 @@ impl<'a> Submission<'a> {
             self.r.ctx.queue.write_buffer(&b, 0, bytes);
         }
         b
-    }
-
-    /// A read-only storage buffer holding `records`.
-    pub fn storage<T: bytemuck::Pod>(
-        &mut self,
-        label: &'static str,
-        records: &[T],
-    ) -> wgpu::Buffer {
-        self.upload(
-            label,
-            wgpu::BufferUsages::STORAGE,
-            bytemuck::cast_slice(records),
-        )
     }
 
     /// A buffer for `usage` of `bytes` (a multiple of 16), written by `fill` straight into
