@@ -284,9 +284,16 @@ impl Corrections {
         // a detail map's texels are the finest the light is known at: splitting them
         // further would make them area lights, which the finer map's layer is not
         let max_split = detail.map_or(MAX_SPLIT, |d| d.height / env.height);
+        // each pixel's key on all cores (a spline of the material per pixel), then the
+        // groups in the pixels' order
+        let keys: Vec<Option<Key>> = prep
+            .pixels
+            .par_iter()
+            .map(|p| split_of(env, &prep.ctrl, p, q, max_split))
+            .collect();
         let mut by_key: BTreeMap<Key, Vec<&PixelRec>> = BTreeMap::new();
-        for p in &prep.pixels {
-            if let Some(k) = split_of(env, &prep.ctrl, p, q, max_split) {
+        for (p, k) in prep.pixels.iter().zip(keys) {
+            if let Some(k) = k {
                 by_key.entry(k).or_default().push(p);
             }
         }
