@@ -139,7 +139,9 @@ fn args() -> Result<Args, String> {
             "--env-size" => a.env_size = maps::env_size(&value()?)?,
             "--cache" => a.cache = Some(value()?.into()),
             "--oracle-steps" => {
-                a.oracle_steps = value()?.parse().map_err(|e| format!("--oracle-steps: {e}"))?
+                a.oracle_steps = value()?
+                    .parse()
+                    .map_err(|e| format!("--oracle-steps: {e}"))?
             }
             other => return Err(format!("unknown option {other}")),
         }
