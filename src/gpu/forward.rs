@@ -1,11 +1,11 @@
 //! Host side of shaders/forward.wgsl, and the encoding it shares with backward_normal.
 
+use rayon::prelude::*;
+
 use super::buffers::{MIN_BYTES, ParamsTable, Slot};
 use super::layout::{CHUNK_BYTES, Params, Pixel, Texel};
 use super::pipelines::Tiles;
 use super::pixels::{Selection, Source};
-use rayon::prelude::*;
-
 use super::submission::Submission;
 use super::{GpuRenderer, Pass};
 use crate::error::Result;
@@ -54,8 +54,8 @@ const TEXEL_BLOCK: usize = 1024;
 
 /// A buffer for `usage` of `bytes` (at least the records') holding the records of `which`
 /// texels of each of `preps`, one scene after another, computed on all cores straight
-/// into the staging buffer: the continuous light's corrections hand the GPU hundreds of
-/// scenes of thousands of lights each, whose records (256 bytes each) were most of a call.
+/// into the staging buffer (the continuous light's corrections hand the GPU hundreds of
+/// scenes of thousands of lights each, 256 bytes a record; docs/gpu.md).
 pub(super) fn upload_texels(
     sub: &mut Submission<'_>,
     label: &'static str,
