@@ -61,6 +61,18 @@ fn exp2_within_its_bound_over_the_valid_range() {
         &[-127.0, -500.0, -3.0e38, f32::NEG_INFINITY],
     );
     assert_eq!(got, vec![0.0; 4]);
+    // where 2^t is subnormal: within 2^-126, never negative
+    let xs = linspace(-127.0, -126.0, 100_001);
+    for cpu in levels() {
+        for (&x, g) in xs.iter().zip(eval(&cpu, MathFn::Exp2, &xs)) {
+            let e = (g as f64 - (x as f64).exp2()).abs();
+            assert!(
+                g >= 0.0 && e < 2f64.powi(-126),
+                "{}: exp2({x}) = {g:e}",
+                cpu.level().name()
+            );
+        }
+    }
 }
 
 #[test]

@@ -18,16 +18,13 @@ use sweeps::Outcome;
 const IMAGE_TOL: f64 = 3e-5;
 const GRAD_TOL: f64 = 1e-4;
 
-#[test]
-fn sweeps_hold_on_every_backend() {
+/// Every sweep case on `exact` against the reference, and on the fast CPU path through
+/// `methods`: invalid input rejected, valid input finite, the exact paths within their f32
+/// error.
+fn sweeps_hold(exact: &[(&str, &dyn Backend)], methods: &[&str]) {
     let reference = matedit::reference::Reference;
     let cpu = matedit::cpu::FastCpu::new().expect("the fast CPU path");
-    let gpu = common::gpu("sweeps_hold_on_every_backend");
-    let mut exact: Vec<(&str, &dyn Backend)> = vec![("fast CPU", &cpu)];
-    if let Some(g) = &gpu {
-        exact.push(("GPU", g));
-    }
-    let methods: Vec<Method> = ["env2", "keep4", "table16"]
+    let methods: Vec<Method> = methods
         .iter()
         .map(|m| m.parse().expect("a method"))
         .collect();
@@ -50,7 +47,7 @@ fn sweeps_hold_on_every_backend() {
             re.iter().flatten().all(|v| v.is_finite()),
             "{what}: reference not finite"
         );
-        for (name, backend) in &exact {
+        for (name, backend) in exact {
             match sweeps::outcome(*backend, &Method::EXACT, case, Some(&re)) {
                 Outcome::Ran {
                     finite: true,
@@ -73,6 +70,22 @@ fn sweeps_hold_on_every_backend() {
         }
     }
     eprintln!("{} cases, {runs} runs off the reference", cases.len());
+}
+
+#[test]
+fn sweeps_hold_on_the_cpu_paths() {
+    let cpu = matedit::cpu::FastCpu::new().expect("the fast CPU path");
+    sweeps_hold(&[("fast CPU", &cpu)], &["env2", "keep4", "table16"]);
+}
+
+/// Apart from the CPU paths' test, so that CI runs it again on a hardware GPU's paths
+/// alone.
+#[test]
+fn sweeps_hold_on_the_gpu() {
+    let Some(gpu) = common::gpu("sweeps_hold_on_the_gpu") else {
+        return;
+    };
+    sweeps_hold(&[("GPU", &gpu)], &[]);
 }
 
 /// At n.w = 0 the cosine max(0, n.w) has a kink: central finite differences see half a

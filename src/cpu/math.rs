@@ -83,18 +83,29 @@ fn pow2_from_magic<S: Simd>(s: S, z: S::f32s) -> S::f32s {
     s.transmute_f32s_u32s(s.wrapping_dyn_shl_u32s(k, s.splat_u32s(23)))
 }
 
-/// 2^t, t clamped to [-127, 127]; exactly 0 at -127 and below.
+/// 2^t for t <= 126: within [`EXP2_MAX_REL`] (relative) from -126 up, where 2^t is a
+/// normal f32, within 2^-126 (absolute) below, exactly 0 at -127 and below, never negative
+/// or NaN. Its callers take x^b = 2^(b log2 x) for x <= 1 (up to rounding), so t <= 0 but
+/// for rounding: only the lower end is clamped.
 #[inline(always)]
 pub fn exp2<S: Simd>(s: S, t: S::f32s) -> S::f32s {
     #[cfg(target_arch = "x86_64")]
     if let Some(v) = v4::get(s) {
         return v4::exp2(s, v, t);
     }
-    let t = s.min_f32s(s.max_f32s(t, s.splat_f32s(-127.0)), s.splat_f32s(127.0));
+    let t = s.max_f32s(t, s.splat_f32s(-127.0));
     let z = s.add_f32s(t, s.splat_f32s(MAGIC));
     let f = s.sub_f32s(t, s.sub_f32s(z, s.splat_f32s(MAGIC)));
     let p = s.mul_add_e_f32s(horner(s, f, &EXP2_P), f, s.splat_f32s(1.0));
-    s.mul_f32s(p, pow2_from_magic(s, z))
+    // p 2^k by adding k to p's exponent field: the low 9 bits of `z` hold k (two's
+    // complement; MAGIC's are 0), shifted there. Exact while p 2^k is normal (t >= -126);
+    // below, the sum's bits are a subnormal (2p - 1 or p - 1) 2^-126, off by less than
+    // 2^-126 (k = -127 has f >= 0, so p >= 1: never a negative sum); at t = -127, f = 0,
+    // p = 1 and the bits are 0
+    s.transmute_f32s_u32s(s.add_u32s(
+        s.transmute_u32s_f32s(p),
+        s.wrapping_dyn_shl_u32s(s.transmute_u32s_f32s(z), s.splat_u32s(23)),
+    ))
 }
 
 /// Whether any lane of `m` is set. pulp's `first_true_m32s` walks the lanes one by one
