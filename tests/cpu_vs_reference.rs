@@ -167,6 +167,27 @@ fn forward_backward_non_unit_normals_and_background() {
     compare("non-unit normals", &Batch::single(s).unwrap());
 }
 
+/// Normals facing away from the camera: texels above their horizon whose half vector is
+/// not (x = max(0, h.n) = 0, log2 x standing in as a large negative number), under nine
+/// lobes with exponents to 80, whose x^m1 must come out 0 there, not NaN.
+#[test]
+fn normals_facing_away_have_lit_texels_with_x_zero() {
+    let mut rng = Rng::new(23);
+    let mut s = random_scene(
+        &mut rng,
+        12,
+        10,
+        16,
+        32,
+        Convention::Equirect,
+        Camera::Orthographic,
+    );
+    let n = s.normals.normals.iter().map(|v| [v[0], v[1], -v[2].abs()]);
+    s.normals = NormalMap::new(12, 10, n.collect()).unwrap();
+    s.material = random_material(&mut rng, (0.02, 1.2), (2.0, 80.0));
+    compare("normals facing away", &Batch::single(s).unwrap());
+}
+
 /// A sharp lobe under a bright, smooth sky: the lobe argument x is near 1 where it matters.
 fn sharp_scene(m1: f64, camera: Camera) -> Scene {
     let m0 = 5.0;

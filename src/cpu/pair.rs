@@ -11,9 +11,10 @@ use super::table::{LobePlan, Px, TexelTable};
 use crate::prepare::HALF_VECTOR_EPS;
 use crate::spline::N_CTRL_POINTS;
 
-/// log2 x stand-in at x = 0: b * NEG_BIG clamps to 2^-127 = 0 for b > 0, and 0 * NEG_BIG
-/// = 0 gives x^0 = 1.
-const NEG_BIG: f32 = -3.0e38;
+/// log2 x stand-in at x = 0: b * NEG_BIG is finite for every exponent b <= 1e4 (the
+/// material's bound; [`super::math::exp2`] takes finite arguments) and gives 2^(b NEG_BIG)
+/// = 0 for b > 4e-33, and 0 * NEG_BIG = 0 gives x^0 = 1.
+const NEG_BIG: f32 = -3.0e34;
 /// The clamp of m1 x^(m1 - 1) in dL/dn, as in the reference.
 pub const DPOW_MAX: f32 = 1e10;
 
