@@ -535,8 +535,9 @@ fn finer_tables_and_blocks_are_more_accurate() {
         e[0], e[1], e[2]
     );
     // the horizon kinks of max(0, n.w) (one per texel) keep the convergence well below
-    // Catmull-Rom's cubic rate: about 12x, then 1.7x here
-    assert!(e[0] > 4.0 * e[1] && e[1] > 1.3 * e[2], "{e:?}");
+    // the interpolation's own rate (h^6): 4.8x, then 1.17x here (table64 is finer than
+    // the 48 pixels)
+    assert!(e[0] > 4.0 * e[1] && e[1] > 1.1 * e[2], "{e:?}");
     assert!(e[2] <= 5e-4, "table64: {:e}", e[2]);
 
     // one bright texel on a dim map: coarse blocks move it, kept texels put it back

@@ -47,7 +47,7 @@ use crate::prepare::Prepared;
 use crate::scene::{Gradients, Image, Scene, Wanted};
 
 use super::plan::Plan;
-use super::table::Footprint;
+use super::table::{Footprint, STENCIL};
 use super::{Method, TABLE_SIZES};
 
 /// The gradients judged on the sampled pixels ...
@@ -88,8 +88,15 @@ const ENV_FACTORS: [usize; 4] = [8, 4, 2, 1];
 const KEEPS: [usize; 4] = [0, 16, 64, 256];
 /// So many kept texels are tried with tables only (per pixel they cost too much).
 const TABLE_ONLY_KEEP: usize = 256;
-/// Kept texels for the tables, in the order tried.
+/// Kept texels for the tables, in the order tried: for images ...
 const KEEPS_FOR_TABLES: [usize; 4] = [16, 64, 256, 0];
+/// ... and with gradients, where 64 come first: dI/dn jumps on the horizon of every texel
+/// left in the table, and where bright texels' horizons crowd together the interpolated
+/// Jacobians miss by more than the sampled pixels show (512 sphere under `studio`,
+/// `random-1`, table128: dLoss/dn 1.2e-3 with 16 texels kept, estimated 3.3e-4, on a row of
+/// pixels at the horizons of texels ranked 23rd to 58th by energy; 5.0e-5 with 64 kept, whose
+/// 48 more texels per pixel made the backward pass 0.335 s against 0.306 s).
+const KEEPS_FOR_GRADIENTS: [usize; 4] = [64, 16, 256, 0];
 /// An approximation is taken only if its predicted work is below this share of the exact
 /// layer's.
 const MAX_COST_SHARE: f64 = 0.5;
@@ -103,8 +110,8 @@ pub const MIN_PAIRS: f64 = 2e8;
 const FLOOR: f64 = 0.75;
 /// The first table resolution tried.
 const FIRST_TABLE: usize = 32;
-/// The cost of interpolating one pixel from a table, in pair evaluations.
-const INTERP_PAIRS: f64 = 4.0;
+/// The cost of interpolating one pixel from a table (its 36 nodes), in pair evaluations.
+const INTERP_PAIRS: f64 = 9.0;
 /// The cost of a pair in the normals' Jacobian (a table's dLoss/dn) on its own (the
 /// trials' pass), in forward pair evaluations.
 const JACOBIAN_PAIR: f64 = 2.0;
@@ -356,7 +363,7 @@ struct Trial<'a> {
     upstream: Option<&'a Image>,
     /// For the per-pixel methods.
     pixels: Truth,
-    /// For the tables, which cost 16 nodes per sampled pixel: a part of the sample.
+    /// For the tables, which cost a stencil of nodes per sampled pixel: a part of the sample.
     tables: Truth,
     /// For dLoss/dL and dLoss/dctrl (with an upstream gradient): every pixel, but a
     /// sample of the texels. These are sums over pixels whose errors cancel between
@@ -551,9 +558,12 @@ impl<'a> Trial<'a> {
             None => {
                 let mask = texel_mask(env);
                 let full = self.full;
+                let t = std::time::Instant::now();
                 let exact =
                     Plan::masked(self.backend, full, env, &Method::EXACT, &full.pixels, &mask)?;
+                trace("    truth plan", t);
                 let grads = exact.backward_wanted(self.backend, up, SUMS)?;
+                trace("    truth backward", t);
                 self.texels.get_or_init(|| TexelTruth { mask, grads })
             }
         };
@@ -702,7 +712,12 @@ pub(crate) fn choose_plan<'a>(
         // full resolution before blocks; with texels kept before without: a bright
         // texel's horizon is a kink in the image as a function of the normal, which a table
         // cannot interpolate, so a table over the rest of the map is usually the cheaper
-        let keep_rank = |k: usize| KEEPS_FOR_TABLES.iter().position(|&x| x == k);
+        let keeps = if backward {
+            KEEPS_FOR_GRADIENTS
+        } else {
+            KEEPS_FOR_TABLES
+        };
+        let keep_rank = |k: usize| keeps.iter().position(|&x| x == k);
         table_lights.sort_by_key(|&((f, k), _, _)| (f, keep_rank(k)));
         // blocks give each texel its block's dLoss/dL (see the per-pixel lights): with
         // gradients, tables over the full-resolution map only
@@ -830,7 +845,7 @@ pub(crate) fn choose_plan<'a>(
                     continue;
                 }
                 // the image's trial, and the gradients' if the image passes
-                let node_work = nodes.min(16 * s_tables as usize) as f64 * blocks;
+                let node_work = nodes.min(STENCIL * s_tables as usize) as f64 * blocks;
                 let spend = node_work + s_tables * kept;
                 // the best's table with other texels kept saves only what the kept texels
                 // cost; not worth a trial that costs more (on the 512 sphere with
@@ -886,12 +901,13 @@ pub(crate) fn choose_plan<'a>(
                     break;
                 }
                 last_miss = Some(e.scaled(chooser));
-                // the resolution this error asks for, if the table's share falls as h^3
-                // (in units of the pixels' safety factor)
+                // the resolution this error asks for, if the table's share falls as h^4
+                // (in units of the pixels' safety factor; the interpolation's own rate is
+                // h^6, the kinks of texels' horizons left in the table fall slower)
                 let (safety, worst) = (chooser.safety, e.scaled(chooser) / chooser.safety);
                 let share = (worst - e_light).max(worst / 2.0);
                 let room = (tol / safety - e_light).max(tol / safety / 2.0);
-                let want = r as f64 * (share / room).cbrt();
+                let want = r as f64 * (share / room).powf(0.25);
                 i += 1;
                 while i < TABLE_SIZES.len() && (TABLE_SIZES[i] as f64) < want {
                     i += 1;

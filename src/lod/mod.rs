@@ -37,7 +37,7 @@ use crate::scene::{Gradients, Image, Scene};
 /// Largest block side of an environment level.
 pub const MAX_ENV_FACTOR: usize = 64;
 /// Table resolutions [`choose`] tries.
-pub const TABLE_SIZES: [usize; 10] = [16, 24, 32, 48, 64, 96, 128, 192, 256, 384];
+pub const TABLE_SIZES: [usize; 12] = [16, 24, 32, 48, 64, 96, 128, 160, 192, 224, 256, 384];
 
 /// A level of detail: how the layer is approximated. `Method::EXACT` is the layer itself.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
