@@ -22,10 +22,10 @@
 //!   error is within half the budget. After a table misses, the next resolution tried is
 //!   the one its error predicts (taken to fall as the fourth power of the node spacing: the
 //!   interpolation's own error falls as the sixth, the kinks of texels' horizons left in
-//!   the table slower); after one passes, the
-//!   next light starts a step below it; a resolution whose dLoss/dL missed is not tried
-//!   again with other kept texels (dLoss/dL does not depend on the radiance); a light
-//!   whose finer table missed by more than `FLOOR` of its last miss goes no finer.
+//!   the table slower); after one passes, the next light starts a step below it; a
+//!   resolution whose dLoss/dL missed is not tried again with other kept texels (dLoss/dL
+//!   does not depend on the radiance); a light whose finer table missed by more than
+//!   `FLOOR` of its last miss goes no finer.
 //!
 //! With an upstream gradient, the finest table within the work allowed is first judged on
 //! dLoss/dL alone (where that trial costs at most a third of the budget): dLoss/dL does not
@@ -82,13 +82,6 @@ const SAMPLE_EVERY: usize = 64;
 const SAMPLE_MIN: usize = 256;
 /// ... and at most this many.
 const SAMPLE_MAX: usize = 2048;
-/// The tables' trials take every so many of the sampled pixels, at most [`TABLE_MAX`] of
-/// them (and as many again of the brightest): a sampled pixel costs a table's trial its
-/// stencil's 36 nodes, and with 256 on the 512 scenes the trials' budget ran out before a
-/// table passed (the sphere, plastic-red under sunset at 1e-4: exact at 0.92x). Fewer on a
-/// small scene would judge dLoss/dn against too few pixels' largest value.
-const TABLE_EVERY: usize = 8;
-const TABLE_MAX: usize = 128;
 /// About this many texels for the estimates of dLoss/dL and dLoss/dctrl.
 const SAMPLE_TEXELS: usize = 128;
 /// Block sides tried, coarsest first.
@@ -443,14 +436,13 @@ impl<'a> Trial<'a> {
         };
         let positions = sample_positions(full.pixels.len());
         let pixels = truth(&positions, None, false)?;
-        // for the tables: every `every`-th sampled pixel, and as many again of the
-        // brightest others, where a table's error concentrates (the highlights)
-        let every = TABLE_EVERY.max(positions.len().div_ceil(TABLE_MAX));
-        let mut table_positions: Vec<usize> = positions.iter().copied().step_by(every).collect();
+        // for the tables: every 8th sampled pixel, and as many again of the brightest
+        // others, where a table's error concentrates (the highlights)
+        let mut table_positions: Vec<usize> = positions.iter().copied().step_by(8).collect();
         let mut rest: Vec<(f32, usize)> = positions
             .iter()
             .enumerate()
-            .filter(|(j, _)| j % every != 0)
+            .filter(|(j, _)| j % 8 != 0)
             .map(|(j, &k)| {
                 let v = pixels.image.pixels[j];
                 (v[0].max(v[1]).max(v[2]), k)
