@@ -96,8 +96,10 @@ const KEEPS_FOR_TABLES: [usize; 4] = [16, 64, 256, 0];
 /// left in the table, and where bright texels' horizons crowd together the interpolated
 /// Jacobians miss by more than the sampled pixels show (512 sphere under `studio`,
 /// `random-1`, table128: dLoss/dn 1.2e-3 with 16 texels kept, estimated 3.3e-4, on a row of
-/// pixels at the horizons of texels ranked 23rd to 58th by energy; 5.0e-5 with 64 kept, whose
-/// 48 more texels per pixel made the backward pass 0.335 s against 0.306 s).
+/// pixels at the horizons of texels ranked 23rd to 58th by energy; 5.0e-5 with 64 kept,
+/// whose 48 more texels per pixel made forward + backward 0.511 s against 0.495 s: `cargo
+/// bench --bench lod -- --scenes sphere512 --envs studio --materials random-1 --methods
+/// exact,table128+keep16,table128+keep64 --tols none --peers none`).
 const KEEPS_FOR_GRADIENTS: [usize; 4] = [64, 16, 256, 0];
 /// An approximation is taken only if its predicted work is below this share of the exact
 /// layer's.

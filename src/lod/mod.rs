@@ -16,9 +16,9 @@
 //!   some pixel's stencil needs one, and each pixel is interpolated from the 6 x 6 nodes
 //!   around it (Lagrange, degree 5 along each axis). Kept texels stay exact per pixel;
 //!   normals that are not unit length, or too far behind the sphere, stay exact too. The
-//!   backward pass scatters the
-//!   upstream gradient onto the nodes (the interpolation's adjoint) and runs the exact
-//!   backward there; dLoss/dn interpolates the nodes' exact 3 x 3 Jacobians dI/dn.
+//!   backward pass scatters the upstream gradient onto the nodes (the interpolation's
+//!   adjoint) and runs the exact backward there; dLoss/dn interpolates the nodes' exact
+//!   3 x 3 Jacobians dI/dn.
 //!
 //! Errors are relative: max |I - I_exact| over max I_exact (and the same for each
 //! gradient).
