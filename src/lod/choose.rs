@@ -114,8 +114,9 @@ pub const MIN_PAIRS: f64 = 2e8;
 const FLOOR: f64 = 0.75;
 /// The first table resolution tried.
 const FIRST_TABLE: usize = 32;
-/// The cost of interpolating one pixel from a table (its 36 nodes), in pair evaluations.
-const INTERP_PAIRS: f64 = 9.0;
+/// The cost of interpolating one pixel from a table (its stencil's nodes), in pair
+/// evaluations: four nodes to a pair.
+const INTERP_PAIRS: f64 = STENCIL as f64 / 4.0;
 /// The cost of a pair in the normals' Jacobian (a table's dLoss/dn) on its own (the
 /// trials' pass), in forward pair evaluations.
 const JACOBIAN_PAIR: f64 = 2.0;
