@@ -3,7 +3,7 @@
 //! error against time, and a before/after crop of the default render.
 //!
 //! ```sh
-//! cargo run --release --example discretisation                 # writes docs/light/
+//! cargo run --release --example discretisation                 # writes docs/continuous_light/
 //! cargo run --release --example discretisation -- --out DIR --sphere 128 --hdri forest
 //! ```
 //!
@@ -46,7 +46,7 @@ fn arg(args: &[String], name: &str) -> Option<String> {
 
 fn run() -> Result<(), String> {
     let args: Vec<String> = std::env::args().collect();
-    let out = PathBuf::from(arg(&args, "--out").unwrap_or_else(|| "docs/light".into()));
+    let out = PathBuf::from(arg(&args, "--out").unwrap_or_else(|| "docs/continuous_light".into()));
     let size: usize =
         arg(&args, "--sphere").map_or(Ok(128), |s| s.parse().map_err(|_| "--sphere N"))?;
     let hdri = arg(&args, "--hdri").unwrap_or_else(|| "forest".into());

@@ -3,7 +3,7 @@
 //! diffuse sphere rendered under each of the same maps.
 //!
 //! ```sh
-//! cargo run --release --example lights_sheet                  # writes docs/lights/
+//! cargo run --release --example lights_sheet                  # writes docs/environments/
 //! cargo run --release --example lights_sheet -- --out DIR --seeds 6
 //! ```
 //!
@@ -64,7 +64,7 @@ fn tile(cells: &[Vec<Image>]) -> Image {
 
 fn run() -> Result<(), String> {
     let args: Vec<String> = std::env::args().collect();
-    let out = PathBuf::from(arg(&args, "--out").unwrap_or_else(|| "docs/lights".into()));
+    let out = PathBuf::from(arg(&args, "--out").unwrap_or_else(|| "docs/environments".into()));
     let seeds: u64 = arg(&args, "--seeds").map_or(Ok(4), |s| s.parse().map_err(|_| "--seeds N"))?;
     std::fs::create_dir_all(&out).map_err(|e| format!("{}: {e}", out.display()))?;
     let renderer = Renderer::new(Device::Cpu).map_err(|e| e.to_string())?;

@@ -22,7 +22,7 @@ Examples:
 Kinds: sun-sky (Preetham clear sky, sun disc, ground), overcast (CIE overcast sky),
 studio (1-4 area lights over a surround), indoor (a room with a window, lamp optional).
 The same kind, seed and size give the same map. --turn moves what is at azimuth phi to
-phi + DEG (any angle: linear interpolation along each row, power kept). See docs/lights.md.";
+phi + DEG (any angle: linear interpolation along each row, power kept). See docs/environments.md.";
 
 /// The options of `matedit env`.
 #[derive(clap::Args)]

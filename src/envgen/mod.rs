@@ -11,7 +11,7 @@
 //!
 //! Every texel is the solid-angle-weighted mean of the light over sub-texel samples, and
 //! the sun's power is spread over the texels its disc covers, so that it is the same at
-//! every size. [`augment`] turns, exposes and white-balances maps. docs/lights.md shows
+//! every size. [`augment`] turns, exposes and white-balances maps. docs/environments.md shows
 //! each kind.
 //!
 //! ```

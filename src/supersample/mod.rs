@@ -1,6 +1,6 @@
 //! The continuous light: the layer with each texel of an equirect map taken as an area
 //! light of constant radiance over its patch of directions, instead of a point light at
-//! its centre (docs/CONVENTIONS.md, "The continuous light"; docs/light.md).
+//! its centre (docs/CONVENTIONS.md, "The continuous light"; docs/continuous_light.md).
 //!
 //! A texel split into s x s sub-texels of the same radiance, each a point light with its
 //! own direction and solid angle, converges to the area light as s grows. Only a lobe
