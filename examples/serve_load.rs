@@ -6,7 +6,7 @@
 //!
 //! Prints the percentiles (ms, from the request's start to the last byte of the PNG).
 
-#[path = "../tests/http/mod.rs"]
+#[path = "../tests/it/http/mod.rs"]
 mod http;
 
 use std::time::Instant;

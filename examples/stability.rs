@@ -1,11 +1,11 @@
-//! Writes the sweep tables of docs/stability.md: every case of tests/sweeps on the f64
+//! Writes the sweep tables of docs/stability.md: every case of tests/it/sweeps on the f64
 //! reference, the fast CPU path, the GPU path (any wgpu adapter; skipped without one)
 //! and three levels of detail on the fast CPU path, each output checked for NaN and inf and
 //! compared with the reference; then the f32 remedies against the naive formulas.
 //!
 //!     cargo run --release --example stability [-- --out docs/stability_sweeps.md]
 
-#[path = "../tests/sweeps/mod.rs"]
+#[path = "../tests/it/sweeps/mod.rs"]
 mod sweeps;
 
 use std::fmt::Write as _;

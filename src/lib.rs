@@ -24,7 +24,7 @@
 //!
 //! # Map
 //!
-//! Each layer uses only those beneath it (`tests/layout.rs` checks that no files and no
+//! Each layer uses only those beneath it (`tests/it/layout.rs` checks that no files and no
 //! top-level modules import each other around a circle):
 //!
 //! - [`shapes`]: meshes and procedural shapes rasterised to normal maps (on the scene

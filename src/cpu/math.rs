@@ -4,7 +4,7 @@
 //! No special cases beyond what a valid input reaches: arguments are clamped into range
 //! instead of producing inf or NaN, and ln is only taken of x > 0 (its callers handle
 //! x = 0). Coefficients are near-minimax fits (relative error) computed for this file; the
-//! bound beside each is the fit's error in exact arithmetic, and `tests/cpu_math.rs` sweeps
+//! bound beside each is the fit's error in exact arithmetic, and `tests/it/cpu_math.rs` sweeps
 //! the f32 implementations (fit plus rounding) against f64 and asserts the `*_MAX_REL`
 //! bounds.
 
@@ -377,7 +377,7 @@ impl pulp::WithSimd for Eval<'_> {
 }
 
 /// Applies `f` to `xs` with the kernels' own SIMD code at `cpu`'s level: what the error
-/// sweep in tests/cpu_math.rs measures.
+/// sweep in tests/it/cpu_math.rs measures.
 pub fn eval(cpu: &super::FastCpu, f: MathFn, xs: &[f32]) -> Vec<f32> {
     let n = xs.len().div_ceil(16) * 16;
     let mut padded = xs.to_vec();

@@ -14,7 +14,7 @@ use crate::error::{Error, Result};
 /// Smallest buffer made: bindings cannot be empty, and a binding must hold at least one
 /// element of the shader's array (a `Texel` is 256 bytes): a scene with no foreground
 /// pixels, no lit texels or no pixel with an upstream gradient still binds a valid buffer.
-/// tests/gpu_bindings.rs checks every binding of every pass against it.
+/// tests/it/gpu_bindings.rs checks every binding of every pass against it.
 pub const MIN_BYTES: u64 = 256;
 
 /// Alignment of every upload and readback region: a multiple of wgpu's copy and map

@@ -6,7 +6,7 @@
 //! its error is a few f32 roundings of the largest terms (~1e-6 at exponents up to 60);
 //! gradients add the f32 rounding of x^m1 ln x and of m1 x^(m1 - 1) near x = 0.
 
-mod common;
+use crate::common;
 
 use common::{
     Rng, Truth, assert_close, flat32, flat64, max_abs, random_material, random_scene, scenes,

@@ -6,7 +6,7 @@
 //!
 //! Scenes are small (a 32 x 32 sphere, 8 x 16 maps, the fast CPU path).
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 

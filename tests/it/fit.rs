@@ -14,7 +14,7 @@ use matedit::fit::{Lobes, Options, fit, joint};
 use matedit::material::idx;
 
 const NBRDF: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/data/merl/merl_nbrdf.json");
-const FITS: &str = include_str!("../data/merl/fits.json");
+const FITS: &str = include_str!("../../data/merl/fits.json");
 
 fn matedit() -> assert_cmd::Command {
     cargo_bin_cmd!("matedit")

@@ -4,7 +4,7 @@
 //! array's element stride, a fixed array's or struct's span): the host never binds a
 //! buffer smaller than [`matedit::gpu::MIN_BYTES`], so every minimum must fit in it.
 
-mod common;
+use crate::common;
 
 use common::{Rng, assert_close, gpu, random_material, random_scene};
 use matedit::gpu::{GpuRenderer, MIN_BYTES, Pass, Tiles};

@@ -1,7 +1,7 @@
 //! Compiled pipelines kept across processes (wgpu's pipeline cache, on Vulkan adapters):
 //! saved to a file, loaded from it, and a damaged file ignored.
 
-mod common;
+use crate::common;
 
 use matedit::gpu::cache::DiskCache;
 use matedit::gpu::pipelines::Pipeline;

@@ -7,7 +7,7 @@
 //! while still catching any wrong term. Sharp lobes (m1 up to 1e4) stay within it only
 //! because x and ln x keep their digits near x = 1 (`lobe_x`; docs/CONVENTIONS.md).
 
-mod common;
+use crate::common;
 
 use common::{Rng, Truth, assert_close, flat32, gpu, random_scene, scenes, upstream_for};
 use matedit::gpu::Tiles;

@@ -2,7 +2,7 @@
 //! f64, on small random scenes kept away from the kinks of max(0, .); and the one-sided
 //! value the layer returns at a kink.
 
-mod common;
+use crate::common;
 
 use common::{Rng, assert_close, random_material};
 use matedit::prepare::{Prepared, dot, half_vector};

@@ -1,4 +1,4 @@
-//! The source tree's arrows run one way (the README's Layout): no circle of files that
+//! The source tree's arrows run one way (docs/layout.md): no circle of files that
 //! import one another, and none of top-level modules. A module's files and its `mod.rs`
 //! may use each other (a module's parts share its types); every other pair of files may
 //! not, directly or around a circle. The command line (`main.rs`, `cli/`) is checked the

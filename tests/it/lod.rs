@@ -6,7 +6,7 @@
 //! across runs and thread counts, the fast path and the GPU against the reference, and
 //! background pixels.
 
-mod common;
+use crate::common;
 
 use common::{Rng, random_material, random_scene, upstream_for};
 use matedit::cpu::FastCpu;

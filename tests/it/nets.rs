@@ -5,7 +5,7 @@
 //! predictions must match within 1e-4; bad weight files must give one-line errors naming
 //! the file and the tensor.
 
-mod common;
+use crate::common;
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};

@@ -1,7 +1,7 @@
 //! Numerics at the edges of valid input: no NaN or inf anywhere for extreme but valid
 //! scenes, and full precision where a naive exp(y) - 1 would lose it (small scales).
 
-mod common;
+use crate::common;
 
 use common::{Rng, assert_close, flat32, flat64, gpu};
 use matedit::prepare::Prepared;

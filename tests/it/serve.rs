@@ -3,8 +3,7 @@
 //! message, 413 past the limits), two clients at once, and 20 concurrent previews.
 #![cfg(feature = "serve")]
 
-#[path = "http/mod.rs"]
-mod http;
+use crate::http;
 
 use std::net::SocketAddr;
 use std::time::Instant;

@@ -158,7 +158,7 @@ fn shared_constants_match_rust() {
         wgsl_u32_const(&module(Pass::BackwardTexel), "CHUNK") as usize,
         PIXEL_CHUNK
     );
-    // the shaders' 2^u - 1 is the fast CPU path's polynomial, whose error tests/cpu_math.rs sweeps
+    // the shaders' 2^u - 1 is the fast CPU path's polynomial, whose error tests/it/cpu_math.rs sweeps
     for (j, q) in EXP2M1_Q.iter().enumerate() {
         assert_eq!(
             wgsl_f32_const(&m, &format!("EXP2M1_Q{j}")),

@@ -1,4 +1,4 @@
-//! Stability: every sweep case of tests/sweeps (material, geometry and light at and past
+//! Stability: every sweep case of tests/it/sweeps (material, geometry and light at and past
 //! the edges of valid input) on the f64 reference, the fast CPU path, the GPU path and
 //! three levels of detail: invalid input is rejected, valid input gives finite outputs
 //! everywhere, and the exact paths stay within their f32 error of the reference. Also the
@@ -6,8 +6,8 @@
 //! environment level fails (a hard sun under a sharp lobe), pinned. docs/stability.md has
 //! the measured tables (`cargo run --release --example stability`).
 
-mod common;
-mod sweeps;
+use crate::common;
+use crate::sweeps;
 
 use matedit::lod::{self, Method};
 use matedit::{Backend, Camera, Convention, EnvMap, Material, NormalMap, Scene};

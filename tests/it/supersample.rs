@@ -3,7 +3,7 @@
 //! (the map refined uniformly, each texel s x s copies), a tolerance is met there, and the
 //! gradients are the adjoint (linearity in L, finite differences in a control point).
 
-mod common;
+use crate::common;
 
 use matedit::supersample::{self, Light};
 use matedit::{

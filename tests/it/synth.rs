@@ -8,7 +8,7 @@
 
 use std::path::{Path, PathBuf};
 
-mod common;
+use crate::common;
 use common::{npy_rgb, synth_cmd};
 
 use assert_cmd::cargo::cargo_bin_cmd;

@@ -7,7 +7,7 @@
 
 use std::path::Path;
 
-mod common;
+use crate::common;
 use common::{npy_rgb, synth_cmd};
 
 use matedit::io::{self, npy};

@@ -5,7 +5,7 @@
 //! without a scale in the scene (what the fast CPU path leaves out without dLoss/dL and
 //! dLoss/dctrl).
 
-mod common;
+use crate::common;
 
 use common::{Rng, assert_close, flat32, gpu, random_scene, upstream_for};
 use matedit::material::idx;

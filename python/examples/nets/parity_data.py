@@ -1,4 +1,4 @@
-"""Test data for the Rust port of the networks (`matedit::nets`, tests/nets.rs): a small
+"""Test data for the Rust port of the networks (`matedit::nets`, tests/it/nets.rs): a small
 `Nets(NetsConfig(width=8, levels=2, env_height=8, env_width=16))` of a fixed seed, its
 weights as `matedit.nets.save` writes them, and a few inputs with PyTorch's predictions.
 
