@@ -2,7 +2,7 @@
 //! environment map, summed over every texel, with the BRDF evaluated in Rusinkiewicz
 //! coordinates about each pixel's normal. It shares nothing with the DSBRDF layer's
 //! renderers, so it is the independent check of a fitted material against the measured
-//! BRDF it was fitted to (`examples/merl_report.rs`).
+//! BRDF it was fitted to (`xtask/src/bin/merl_report.rs`).
 
 use rayon::prelude::*;
 

@@ -4,7 +4,7 @@
 //! everywhere, and the exact paths stay within their f32 error of the reference. Also the
 //! behaviour where finite differences fail (the kink of max(0, n.w)) and where an
 //! environment level fails (a hard sun under a sharp lobe), pinned. docs/stability.md has
-//! the measured tables (`cargo run --release --example stability`).
+//! the measured tables (`cargo xtask stability`).
 
 use crate::common;
 use crate::sweeps;

@@ -1,5 +1,5 @@
 //! A minimal HTTP/1.1 client over std's TcpStream for `matedit serve` (tests/it/serve.rs and
-//! examples/serve_load.rs): one request per connection, read to the end, chunked bodies
+//! xtask/src/bin/serve_load.rs): one request per connection, read to the end, chunked bodies
 //! (server-sent events) decoded.
 #![allow(dead_code)]
 

@@ -1,5 +1,5 @@
 //! Stability sweeps, shared by `tests/it/stability.rs` (which asserts on them) and
-//! `examples/stability.rs` (which writes docs/stability.md from them): scenes at and past
+//! `xtask/src/bin/stability.rs` (which writes docs/stability.md from them): scenes at and past
 //! the edges of valid input, run forward and backward on every backend and level of
 //! detail, each output checked for NaN and inf and compared with the f64 reference.
 

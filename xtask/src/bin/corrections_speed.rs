@@ -4,7 +4,7 @@
 //! (`add_forward`) on each backend named (`gpu`: the best adapter), median of 3 after a
 //! warm-up. docs/gpu.md has its figures on an H200.
 //!
-//! `cargo run --release --example corrections_speed -- [N ...] [--device cpu,gpu]`
+//! `cargo xtask corrections_speed -- [N ...] [--device cpu,gpu]`
 
 use std::time::Instant;
 

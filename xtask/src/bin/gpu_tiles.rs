@@ -2,7 +2,7 @@
 //! tiles, uniform chunks) and of a few slice counts, on this machine's adapter: what
 //! docs/gpu.md's choice for software adapters rests on.
 //!
-//! `cargo run --release --example gpu_tiles -- [N]`: an N x N sphere (default 128) under the
+//! `cargo xtask gpu_tiles -- [N]`: an N x N sphere (default 128) under the
 //! built-in sky at 64 x 128, `plastic-red`, orthographic; forward and backward, median of
 //! 3 calls after a warm-up, from GPU timestamps.
 

@@ -2,11 +2,11 @@
 //! at a time, N previews at once, and full-size edits, each a different turn of the light.
 //!
 //!   cargo run --release -- render --sphere 1024 --preset blue-rubber -o /tmp/sphere.png
-//!   cargo run --release --example serve_load -- /tmp/sphere.png [N]
+//!   cargo xtask serve_load -- /tmp/sphere.png [N]
 //!
 //! Prints the percentiles (ms, from the request's start to the last byte of the PNG).
 
-#[path = "../tests/it/http/mod.rs"]
+#[path = "../../../tests/it/http/mod.rs"]
 mod http;
 
 use std::time::Instant;

@@ -4,7 +4,7 @@
 //! (`lod::SAFETY`, `lod::SAFETY_SUMS`) must cover.
 //!
 //! ```sh
-//! cargo run --release --example lod_estimates -- [--size 512] [--envs studio,forest]
+//! cargo xtask lod_estimates -- [--size 512] [--envs studio,forest]
 //!     [--materials plastic-red,random-1,clay] [--methods table128+keep16,...]
 //! ```
 //!

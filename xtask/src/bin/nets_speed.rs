@@ -1,6 +1,6 @@
 //! How long `Nets::predict` takes on a 256 x 256 image: the figure in docs/nets.md.
 //!
-//! `cargo run --release --example nets_speed -- WEIGHTS [SIZE] [REPS]`: WEIGHTS from
+//! `cargo xtask nets_speed -- WEIGHTS [SIZE] [REPS]`: WEIGHTS from
 //! `matedit.nets.save` (python/examples/nets/parity_data.py --default-weights PATH writes a
 //! random default `NetsConfig()`); a SIZE x SIZE (default 256) image of a lit sphere; the
 //! median of REPS (default 5) calls after a warm-up, with a given mask and without (two

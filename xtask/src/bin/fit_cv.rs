@@ -2,7 +2,7 @@
 //! that no choice of the fitter was tuned on.
 //!
 //! ```text
-//! cargo run --release --example fit_cv -- [--merl ../shared/data/merl_nbrdf]
+//! cargo xtask fit_cv -- [--merl ../shared/data/merl_nbrdf]
 //!     [--envmaps ../shared/data/envmaps] [--set held-out|tuning|all] [--limit N]
 //!     [--maps studio,...]
 //!     [--methods current,joint,new,oracle] [--tolerance REL (new only)] [--sphere 64] [--env-size 64x128]
@@ -18,7 +18,7 @@
 //! method, rendered on a sphere under each HDRI with the fast CPU path and compared with
 //! the sphere rendered with the measured BRDF (`matedit::brdf::render::render_measured`):
 //! PSNR over the sphere's pixels with the measured image's largest value as the peak, as
-//! `examples/merl_report.rs` measures.
+//! `xtask/src/bin/merl_report.rs` measures.
 //!
 //! Methods: `current` is `matedit::fit::fit` without the joint refinement, `joint` the
 //! plain joint least-squares fit of the 108 control points (`matedit::fit::joint::plain`),
@@ -27,7 +27,7 @@
 //! [`oracle`]); what it reaches shows how far the DSBRDF itself can go from the fit's
 //! start. `--cache DIR` keeps the measured renders (NPY) between runs.
 
-#[path = "common/maps.rs"]
+#[path = "../common/maps.rs"]
 mod maps;
 
 use std::path::{Path, PathBuf};

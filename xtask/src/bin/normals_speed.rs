@@ -2,7 +2,7 @@
 //! its smooth normals take where a file has none, and how long loading that mesh from an
 //! OBJ file takes: the figures in docs/shapes.md.
 //!
-//! `cargo run --release --example normals_speed -- [SIZE] [REPS]`: a lumpy sphere of
+//! `cargo xtask normals_speed -- [SIZE] [REPS]`: a lumpy sphere of
 //! 160 rings x 320 segments (101,760 triangles), a random rotation; orthographic and
 //! perspective (fov 40), smooth and flat; the median of REPS (default 7) calls after a
 //! warm-up, with rayon's threads (RAYON_NUM_THREADS, else one per core).

@@ -5,11 +5,11 @@
 //! code with the layer). Writes docs/materials.md and docs/materials/contact.png.
 //!
 //! ```text
-//! cargo run --release --example merl_report -- [--envmaps DIR] [--out docs]
+//! cargo xtask merl_report -- [--envmaps DIR] [--out docs]
 //!     [--sphere 64] [--env-size 64x128] [--only a,b]
 //! ```
 
-#[path = "common/maps.rs"]
+#[path = "../common/maps.rs"]
 mod maps;
 
 use std::fmt::Write as _;
@@ -292,7 +292,7 @@ fn report(a: &Args, rows: &[Row], envs: &[&str], fit_seconds: f64) -> String {
     let _ = writeln!(s, "# The MERL presets: how well each fits\n");
     let _ = writeln!(
         s,
-        "Measured with `cargo run --release --example merl_report -- --envmaps {} --sphere {} --env-size {}x{}`.\n",
+        "Measured with `cargo xtask merl_report -- --envmaps {} --sphere {} --env-size {}x{}`.\n",
         a.envmaps.display(),
         a.sphere,
         a.env_size.0,

@@ -1,6 +1,6 @@
 //! The quality of `matedit edit` on a held-out `matedit synth` folder (docs/edit.md).
 //!
-//!     cargo run --release --example edit_eval -- DATA [--limit N] [--steps K]
+//!     cargo xtask edit_eval -- DATA [--limit N] [--steps K]
 //!         [--normal-steps J] [--normal-smoothness S] [--normal-anchor A] [--weights W]
 //!
 //! For each sample: the photo I (image.npy) with its true mask is decomposed by the nets (the

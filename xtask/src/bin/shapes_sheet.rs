@@ -3,7 +3,7 @@
 //! for seeds 1, 2 and 3 (rows), each seed's random rotation, orthographic, smooth normals,
 //! shown as (n + 1) / 2 on grey.
 //!
-//! `cargo run --release --example shapes_sheet -- [OUT] [TILE]` writes OUT (default
+//! `cargo xtask shapes_sheet -- [OUT] [TILE]` writes OUT (default
 //! docs/shapes/sheet.png) with TILE x TILE pixels per shape (default 96).
 
 use std::path::PathBuf;

@@ -3,8 +3,8 @@
 //! diffuse sphere rendered under each of the same maps.
 //!
 //! ```sh
-//! cargo run --release --example lights_sheet                  # writes docs/environments/
-//! cargo run --release --example lights_sheet -- --out DIR --seeds 6
+//! cargo xtask lights_sheet                  # writes docs/environments/
+//! cargo xtask lights_sheet -- --out DIR --seeds 6
 //! ```
 //!
 //! sheet.png: 128 x 256 maps, Reinhard x / (1 + x) then sRGB. spheres.png: per map a

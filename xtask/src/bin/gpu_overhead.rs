@@ -2,7 +2,7 @@
 //! GPU time of its passes (timestamps), for the forward and the backward, and where the
 //! host time goes (preparing the scene, the passes' records, the submission and readback).
 //!
-//! `cargo run --release --example gpu_overhead -- [N ...] [--env HxW]`: N x N spheres
+//! `cargo xtask gpu_overhead -- [N ...] [--env HxW]`: N x N spheres
 //! (default 256 and 1024) under the built-in sky at 16 x 32 (small, so that a software
 //! adapter's passes stay short: the host's work grows with the pixels), a nine-lobe
 //! random material, orthographic; median of 5 calls after a warm-up.

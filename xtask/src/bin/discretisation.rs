@@ -3,8 +3,8 @@
 //! error against time, and a before/after crop of the default render.
 //!
 //! ```sh
-//! cargo run --release --example discretisation                 # writes docs/continuous_light/
-//! cargo run --release --example discretisation -- --out DIR --sphere 128 --hdri forest
+//! cargo xtask discretisation                 # writes docs/continuous_light/
+//! cargo xtask discretisation -- --out DIR --sphere 128 --hdri forest
 //! ```
 //!
 //! The finer lights: the built-in sky generated at 128 x 256 and 256 x 512; an HDRI of

@@ -2,7 +2,7 @@
 //! kernels against the kernels for materials with nothing to share (`matedit::cpu::dense`),
 //! alternated, and the largest difference between their results.
 //!
-//! `cargo run --release --example cpu_kernels -- [--scene sphereN|bumpyWxH] [--material
+//! `cargo xtask cpu_kernels -- [--scene sphereN|bumpyWxH] [--material
 //! random-SEED[:L]|PRESET] [--env HxW] [--reps N] [--kernels plan,dense] [--pass fwd,bwd]`
 //! (defaults: sphere256, random-1, the built-in sky at 64 x 128, 5 reps, both kernels, both
 //! passes). Times are medians of the prepared scene's forward (`fwd`) and backward (`bwd`)

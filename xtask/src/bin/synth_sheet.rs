@@ -5,7 +5,7 @@
 //! render over its background), scaled so that its 98th-percentile object pixel shows at
 //! 0.8, then clamped and sRGB-encoded.
 //!
-//! `cargo run --release --example synth_sheet -- [SPEC] [OUT] [COLUMNS]` writes OUT
+//! `cargo xtask synth_sheet -- [SPEC] [OUT] [COLUMNS]` writes OUT
 //! (default docs/synth/sheet.png), COLUMNS samples a row (default 8).
 
 use std::path::PathBuf;
