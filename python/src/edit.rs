@@ -1,0 +1,137 @@
+//! `matedit edit` from Python: the built-in nets' weights, and a photo's decomposition and
+//! its object rendered in another material, on NumPy arrays.
+
+use std::path::PathBuf;
+
+use matedit::{Device, Image, Material};
+use numpy::ndarray::{Array, IxDyn};
+use numpy::{IntoPyArray, PyReadonlyArrayDyn, PyUntypedArrayMethods};
+use pyo3::exceptions::PyRuntimeError;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use crate::convert::{elements, images, invalid, py_err, stack};
+
+/// The built-in nets' weights file (data/nets/weights.safetensors) as bytes: the nets that
+/// `matedit edit` and `matedit.nets.load()` use.
+#[pyfunction]
+pub(crate) fn builtin_weights(py: Python<'_>) -> Bound<'_, pyo3::types::PyBytes> {
+    pyo3::types::PyBytes::new(py, matedit::nets::BUILTIN_WEIGHTS)
+}
+
+/// `matedit edit` on arrays: the photo (H, W, 3) linear float32, the new material's control
+/// points (108,), the object's mask (H, W) bool or None (the nets find it). Returns a dict
+/// of NumPy arrays and numbers (see matedit.edit).
+#[pyfunction]
+#[pyo3(signature = (photo, material, mask = None, steps = 150, weights = None, device = "auto"))]
+pub(crate) fn edit_photo<'py>(
+    py: Python<'py>,
+    photo: PyReadonlyArrayDyn<'py, f32>,
+    material: PyReadonlyArrayDyn<'py, f64>,
+    mask: Option<PyReadonlyArrayDyn<'py, bool>>,
+    steps: usize,
+    weights: Option<PathBuf>,
+    device: &str,
+) -> PyResult<Bound<'py, PyDict>> {
+    use matedit::edit::photo::{self, PhotoOptions};
+    let img = images("photo", &photo)?;
+    if img.batched {
+        return Err(invalid("photo: one image (H, W, 3), not a batch".into()));
+    }
+    let image = Image {
+        width: img.width,
+        height: img.height,
+        pixels: img.rows.into_iter().next().unwrap_or_default(),
+    };
+    let ctrl = elements(&material);
+    let target = Material::new("material", &ctrl).map_err(py_err)?;
+    let mask: Option<Vec<bool>> = match &mask {
+        None => None,
+        Some(m) => {
+            if m.shape() != [image.height, image.width] {
+                return Err(invalid(format!(
+                    "mask: shape {:?}, expected ({}, {})",
+                    m.shape(),
+                    image.height,
+                    image.width
+                )));
+            }
+            Some(elements(m).into_owned())
+        }
+    };
+    let device: Device = device
+        .parse()
+        .map_err(|e: String| invalid(format!("device: {e}")))?;
+    let options = PhotoOptions {
+        steps,
+        ..PhotoOptions::default()
+    };
+    let (d, edit) = py
+        .detach(|| -> matedit::Result<_> {
+            let nets = match &weights {
+                Some(w) => matedit::nets::Nets::load(w)?,
+                None => matedit::nets::Nets::builtin()?,
+            };
+            let renderer = matedit::Renderer::new(device)?;
+            let d = photo::decompose(&renderer, &nets, &image, mask.as_deref(), &options)?;
+            let object = photo::render_object(&renderer, &d, &target)?;
+            let edit = photo::composite(&image, &object, &d.alpha);
+            Ok((d, edit))
+        })
+        .map_err(py_err)?;
+    let out = PyDict::new(py);
+    out.set_item(
+        "edit",
+        stack(py, false, edit.height, edit.width, vec![&edit.pixels])?,
+    )?;
+    out.set_item(
+        "normals",
+        stack(
+            py,
+            false,
+            d.normals.height,
+            d.normals.width,
+            vec![&d.normals.normals],
+        )?,
+    )?;
+    out.set_item("crop", (d.crop.x0, d.crop.y0, d.crop.size))?;
+    let shape = IxDyn(&[d.height, d.width]);
+    let as_err = |e: numpy::ndarray::ShapeError| PyRuntimeError::new_err(e.to_string());
+    out.set_item(
+        "mask",
+        Array::from_shape_vec(shape.clone(), d.mask.clone())
+            .map_err(as_err)?
+            .into_pyarray(py),
+    )?;
+    out.set_item(
+        "alpha",
+        Array::from_shape_vec(shape, d.alpha.clone())
+            .map_err(as_err)?
+            .into_pyarray(py),
+    )?;
+    out.set_item(
+        "env",
+        stack(py, false, d.env.height, d.env.width, vec![&d.env.texels])?,
+    )?;
+    let ctrl = |m: &Material| Array::from_shape_vec(IxDyn(&[matedit::N_PARAMS]), m.ctrl.to_vec());
+    out.set_item(
+        "material",
+        ctrl(&d.material).map_err(as_err)?.into_pyarray(py),
+    )?;
+    out.set_item(
+        "predicted_material",
+        ctrl(&d.predicted_material)
+            .map_err(as_err)?
+            .into_pyarray(py),
+    )?;
+    out.set_item("psnr_predicted", d.psnr_predicted)?;
+    out.set_item("psnr_refined", d.psnr_refined)?;
+    out.set_item("losses", d.losses.clone())?;
+    out.set_item("normal_losses", d.normal_losses.clone())?;
+    let seconds = PyDict::new(py);
+    for (k, v) in &d.stages {
+        seconds.set_item(*k, v)?;
+    }
+    out.set_item("seconds", seconds)?;
+    Ok(out)
+}
