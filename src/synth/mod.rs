@@ -36,8 +36,8 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::error::{Error, Result};
-use crate::scene::Batch;
 use crate::renderer::Picked;
+use crate::scene::Batch;
 use crate::{Device, Renderer};
 
 pub use chunk::{ChunkRecord, chunk_file};
