@@ -62,7 +62,7 @@ impl Error {
 
 /// `s` with its control characters escaped (a newline as `\n`), so that a message quoting
 /// the user's text (a key of a JSON file, a file name) stays one line.
-pub(crate) fn one_line(s: &str) -> std::borrow::Cow<'_, str> {
+pub fn one_line(s: &str) -> std::borrow::Cow<'_, str> {
     if !s.chars().any(char::is_control) {
         return s.into();
     }

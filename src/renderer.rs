@@ -38,6 +38,45 @@ impl std::str::FromStr for Device {
     }
 }
 
+/// The backend a [`Device`] picks, not yet boxed: [`Renderer::new`] boxes it, and
+/// `synth::Engine` also names its samples after it.
+pub(crate) enum Picked {
+    /// A wgpu adapter.
+    Gpu(gpu::GpuRenderer),
+    /// The fast f32 CPU path.
+    Cpu(cpu::FastCpu),
+    /// The f64 CPU reference.
+    Reference(reference::Reference),
+}
+
+impl Device {
+    /// The backend this device names: the one place where `Auto` chooses (a hardware GPU,
+    /// else the fast CPU path, which outruns a software adapter such as lavapipe; ask for
+    /// that with `Device::Gpu`).
+    pub(crate) fn pick(self) -> Result<Picked> {
+        Ok(match self {
+            Device::Cpu => Picked::Cpu(cpu::FastCpu::new()?),
+            Device::Reference => Picked::Reference(reference::Reference),
+            Device::Gpu => Picked::Gpu(gpu::GpuRenderer::new()?),
+            Device::Auto => match gpu::GpuContext::new_hardware() {
+                Ok(ctx) => Picked::Gpu(gpu::GpuRenderer::with_context(ctx)?),
+                Err(_) => Picked::Cpu(cpu::FastCpu::new()?),
+            },
+        })
+    }
+}
+
+impl Picked {
+    /// The backend, boxed for a [`Renderer`].
+    pub(crate) fn into_backend(self) -> Box<dyn Backend> {
+        match self {
+            Picked::Gpu(g) => Box::new(g),
+            Picked::Cpu(c) => Box::new(c),
+            Picked::Reference(r) => Box::new(r),
+        }
+    }
+}
+
 /// Renders and differentiates batches on one backend.
 pub struct Renderer {
     backend: Box<dyn Backend>,
@@ -49,16 +88,9 @@ impl Renderer {
     /// `Device::Auto` takes a hardware GPU, else the fast CPU path (which outruns a
     /// software adapter such as lavapipe; ask for that with `Device::Gpu`).
     pub fn new(device: Device) -> Result<Self> {
-        let backend: Box<dyn Backend> = match device {
-            Device::Cpu => Box::new(cpu::FastCpu::new()?),
-            Device::Reference => Box::new(reference::Reference),
-            Device::Gpu => Box::new(gpu::GpuRenderer::new()?),
-            Device::Auto => match gpu::GpuContext::new_hardware() {
-                Ok(ctx) => Box::new(gpu::GpuRenderer::with_context(ctx)?),
-                Err(_) => Box::new(cpu::FastCpu::new()?),
-            },
-        };
-        Ok(Renderer { backend })
+        Ok(Renderer {
+            backend: device.pick()?.into_backend(),
+        })
     }
 
     /// A renderer over any backend.

@@ -70,7 +70,7 @@ pub fn run(args: &Args) -> Result<(), Failure> {
     let plan = args
         .scene
         .plan(args.output.as_deref(), args.upstream.as_deref())?;
-    io::outputs::check_gradient_folders(&plan)?;
+    io::outputs::check_gradient_folders(&plan.outputs())?;
     let loaded = plan.load()?;
     let upstream = plan.load_upstream(&loaded.batch)?;
     for n in &loaded.notes {
@@ -102,8 +102,9 @@ pub fn run(args: &Args) -> Result<(), Failure> {
     report(&accuracy, &choices);
     report_light(&light_choices);
     report_light_level(light, &details);
-    let written = io::outputs::write_gradients(&plan, &loaded.batch, &grads, args.wanted())
-        .map_err(runtime)?;
+    let written =
+        io::outputs::write_gradients(&plan.outputs(), &loaded.batch, &grads, args.wanted())
+            .map_err(runtime)?;
     for p in written {
         eprintln!("matedit: wrote {}", p.display());
     }

@@ -10,6 +10,7 @@ mod fit_brdf;
 mod grad;
 mod grid;
 mod info;
+mod job;
 mod normals;
 mod presets;
 mod render;

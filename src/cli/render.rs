@@ -38,7 +38,7 @@ pub struct Args {
 /// Runs `matedit render`.
 pub fn run(args: &Args) -> Result<(), Failure> {
     let plan = args.scene.plan(args.output.as_deref(), None)?;
-    io::outputs::check_images(&plan)?;
+    io::outputs::check_images(&plan.outputs())?;
     let loaded = plan.load()?;
     for n in &loaded.notes {
         eprintln!("matedit: {n}");
@@ -67,8 +67,8 @@ pub fn run(args: &Args) -> Result<(), Failure> {
     report(&accuracy, &choices);
     report_light(&light_choices);
     report_light_level(light, &details);
-    let written =
-        io::outputs::write_images(&plan, &images, &args.preview.preview()).map_err(runtime)?;
+    let written = io::outputs::write_images(&plan.outputs(), &images, &args.preview.preview())
+        .map_err(runtime)?;
     for (p, image) in written.iter().zip(&images) {
         eprintln!(
             "matedit: wrote {} ({}x{})",

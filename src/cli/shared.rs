@@ -6,10 +6,11 @@ use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use matedit::io::job::{Plan, SceneOptions};
 use matedit::io::source::{MaterialSource, NormalsSource};
 use matedit::io::{self, EnvSize, Preview, Tonemap};
 use matedit::{Accuracy, Batch, Convention, Device, Error, Renderer, lod, supersample};
+
+use super::job::{Plan, SceneOptions};
 
 /// A failure and the exit code it gets.
 pub struct Failure {

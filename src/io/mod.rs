@@ -8,15 +8,12 @@
 //! destination folder and renamed into place, so a failed run leaves no partial file.
 //! docs/FORMATS.md describes every format.
 //!
-//! Files: the formats ([`exr`], [`npy`], [`png`], [`json`]) and [`resample`] (env map
-//! sizes) beneath the loaders here; [`info`] (what a file holds); scenes in: [`source`]
-//! (where normals and materials come from), [`manifest`] (batch files) and [`job`] (options
-//! to a loaded batch); results out: [`outputs`] (images and gradient folders) on [`write`](mod@write)
-//! (checks before work, atomic writes).
+//! Files: the formats ([`exr`], [`npy`], [`png`], [`jpeg`], [`json`]) and [`resample`] (env
+//! map sizes) beneath the loaders here; scenes in: [`source`] (where normals and materials
+//! come from) and [`manifest`] (batch files); results out: [`outputs`] (images and gradient
+//! folders) on [`write`](mod@write) (checks before work, atomic writes).
 
 pub mod exr;
-pub mod info;
-pub mod job;
 pub mod jpeg;
 pub mod json;
 pub mod manifest;

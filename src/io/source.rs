@@ -1,6 +1,6 @@
 //! Where a scene's normals and material come from, as the command line's options and a
-//! batch manifest's entries name them: one home for what [`super::job`] and
-//! [`super::manifest`] both read.
+//! batch manifest's entries name them: one home for what [`super::manifest`] reads and the
+//! command line's scene options give.
 
 use std::path::PathBuf;
 

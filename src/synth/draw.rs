@@ -4,7 +4,7 @@
 use serde_json::{Value, json};
 
 use super::augment::Views;
-use super::sources::{MaterialSource, NormalsSource, Weighted};
+use super::sources::{SampleMaterial, SampleNormals, Weighted};
 use super::spec::Spec;
 use crate::camera::Camera;
 use crate::error::{Error, Result};
@@ -52,15 +52,15 @@ impl Spec {
 
         let ni = pick(&mut rng, &self.normals);
         let (normals, nparams) = match &self.normals[ni].source {
-            NormalsSource::Sphere(m) => (m.clone(), json!({ "sphere": w })),
-            NormalsSource::Bumpy => {
+            SampleNormals::Sphere(m) => (m.clone(), json!({ "sphere": w })),
+            SampleNormals::Bumpy => {
                 let seed = rng.next_u64();
                 (
                     NormalMap::bumpy(w, h, seed),
                     json!({ "bumpy": [h, w], "bumpy_seed": seed }),
                 )
             }
-            NormalsSource::Shape(shape, views) => {
+            SampleNormals::Shape(shape, views) => {
                 let seed = rng.next_u64();
                 let (m, rotation) = self.draw_mesh(&shape.mesh(seed), views, &mut rng)?;
                 let p = json!({
@@ -70,7 +70,7 @@ impl Spec {
                 });
                 (m, p)
             }
-            NormalsSource::Meshes(meshes, views) => {
+            SampleNormals::Meshes(meshes, views) => {
                 let (label, mesh) = &meshes[rng.below(meshes.len())];
                 let (m, rotation) = self.draw_mesh(mesh, views, &mut rng)?;
                 let p = json!({
@@ -79,7 +79,7 @@ impl Spec {
                 });
                 (m, p)
             }
-            NormalsSource::Files(maps) => {
+            SampleNormals::Files(maps) => {
                 let (label, m) = &maps[rng.below(maps.len())];
                 (m.clone(), json!({ "file": label }))
             }
@@ -107,8 +107,8 @@ impl Spec {
         let mi = pick(&mut rng, &self.materials);
         let item = &self.materials[mi].source;
         let (material, mut mparams) = match &item.source {
-            MaterialSource::Fixed(m, p) => (Material::clone(m), p.clone()),
-            MaterialSource::RandomMerl { mix, from } => random_merl(&mut rng, *mix, from)?,
+            SampleMaterial::Fixed(m, p) => (Material::clone(m), p.clone()),
+            SampleMaterial::RandomMerl { mix, from } => random_merl(&mut rng, *mix, from)?,
         };
         let material = match &item.perturb {
             None => material,

@@ -36,6 +36,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::error::{Error, Result};
+use crate::renderer::Picked;
 use crate::scene::Batch;
 use crate::{Device, Renderer};
 
@@ -63,33 +64,25 @@ pub struct Engine {
 impl Engine {
     /// The renderer for `device` (`Auto`: a hardware GPU, else the fast CPU path).
     pub fn new(device: Device) -> Result<Engine> {
-        let cpu = || -> Result<Engine> {
-            let fast = crate::cpu::FastCpu::new()?;
-            Ok(Engine {
+        Ok(match device.pick()? {
+            Picked::Cpu(fast) => Engine {
                 label: format!("cpu-{}", fast.level().name()),
                 renderer: Renderer::with_backend(Box::new(fast)),
                 parallel: true,
-            })
-        };
-        let gpu = |r: Renderer| Engine {
-            label: r.describe(),
-            renderer: r,
-            parallel: false,
-        };
-        Ok(match device {
-            Device::Cpu => cpu()?,
-            Device::Reference => Engine {
+            },
+            Picked::Reference(r) => Engine {
                 label: "reference".into(),
-                renderer: Renderer::new(Device::Reference)?,
+                renderer: Renderer::with_backend(Box::new(r)),
                 parallel: true,
             },
-            Device::Gpu => gpu(Renderer::new(Device::Gpu)?),
-            Device::Auto => match crate::gpu::GpuContext::new_hardware() {
-                Ok(ctx) => gpu(Renderer::with_backend(Box::new(
-                    crate::gpu::GpuRenderer::with_context(ctx)?,
-                ))),
-                Err(_) => cpu()?,
-            },
+            Picked::Gpu(gpu) => {
+                let renderer = Renderer::with_backend(Box::new(gpu));
+                Engine {
+                    label: renderer.describe(),
+                    renderer,
+                    parallel: false,
+                }
+            }
         })
     }
 }

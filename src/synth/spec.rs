@@ -20,7 +20,7 @@ use sha2::{Digest, Sha256};
 
 use super::background::{self, Background};
 use super::sources::{
-    self, EnvSource, MaterialItem, NormalsSource, Weighted, image_dims, serde_message,
+    self, EnvSource, MaterialItem, SampleNormals, Weighted, image_dims, serde_message,
 };
 use crate::camera::Camera;
 use crate::envmap::Convention;
@@ -68,7 +68,7 @@ pub struct Spec {
     /// The texel convention.
     pub convention: Convention,
     /// Normal sources.
-    pub normals: Vec<Weighted<NormalsSource>>,
+    pub normals: Vec<Weighted<SampleNormals>>,
     /// Lighting sources.
     pub envs: Vec<Weighted<EnvSource>>,
     /// Material sources.

@@ -485,6 +485,21 @@ fn procedural_env_is_valid_in_both_conventions() {
     }
 }
 
+/// `matedit info FILE`'s report on stdout (the report is the command line's).
+fn info(path: &Path) -> String {
+    let out = assert_cmd::cargo::cargo_bin_cmd!("matedit")
+        .arg("info")
+        .arg(path)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).unwrap()
+}
+
 #[test]
 fn info_reports() {
     let d = dir();
@@ -492,7 +507,7 @@ fn info_reports() {
     let mut data = vec![[0.5f32, 0.25, 2.0]; 4 * 8];
     data[3] = [-1.0, f32::NAN, 0.0];
     std::fs::write(&p, io::npy::encode_rgb(8, 4, &data)).unwrap();
-    let r = io::info::describe(&p).unwrap();
+    let r = info(&p);
     assert!(r.contains("8 wide x 4 high"), "{r}");
     assert!(
         r.contains("NaN values: 1") && r.contains("negative values: 1"),
@@ -509,13 +524,13 @@ fn info_reports() {
         io::json::encode_material(&matedit::presets::lookup("clay").unwrap(), None),
     )
     .unwrap();
-    let r = io::info::describe(&m).unwrap();
+    let r = info(&m);
     assert!(r.contains("material  yes"), "{r}");
 
     let x = d.path().join("x.exr");
     write_exr(&x, &image(4, 2), Compression::ZIP16);
     patch_compression(&x, 10);
-    let r = io::info::describe(&x).unwrap();
+    let r = info(&x);
     assert!(
         r.contains("cannot be used") && r.contains("HTJ2K256"),
         "{r}"

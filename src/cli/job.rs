@@ -2,20 +2,21 @@
 //! scenes, the defaults that fill the gaps, and loading every input with checks.
 //!
 //! Defaults: a sphere of [`DEFAULT_SPHERE`] pixels, the procedural environment of
-//! [`crate::defaults::procedural_env`], the preset [`crate::presets::DEFAULT`], an
+//! [`matedit::defaults::procedural_env`], the preset [`matedit::presets::DEFAULT`], an
 //! orthographic camera, env size 64x128 and the `equirect` convention.
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-use super::manifest::Manifest;
-use super::resample::{self, EnvSize};
-use super::source::{MAX_IMAGE_SIDE, MaterialSource, NormalsSource};
-use crate::camera::Camera;
-use crate::envmap::{Convention, DEFAULT_ENV_SIZE, EnvMap};
-use crate::error::{Error, Result};
-use crate::material::Material;
-use crate::scene::{Batch, Image, NormalMap, Scene};
+use matedit::camera::Camera;
+use matedit::envmap::{Convention, DEFAULT_ENV_SIZE, EnvMap};
+use matedit::error::{Error, Result};
+use matedit::io::manifest::Manifest;
+use matedit::io::resample::{self, EnvSize};
+use matedit::io::source::{MAX_IMAGE_SIDE, MaterialSource, NormalsSource};
+use matedit::io::{load_env, load_material, load_normals, load_upstream};
+use matedit::material::Material;
+use matedit::scene::{Batch, Image, NormalMap, Scene};
 
 /// Side of the default sphere image.
 pub const DEFAULT_SPHERE: usize = 256;
@@ -115,7 +116,7 @@ impl Plan {
                 material: opts
                     .material
                     .clone()
-                    .unwrap_or_else(|| MaterialSource::Preset(crate::presets::DEFAULT.into())),
+                    .unwrap_or_else(|| MaterialSource::Preset(matedit::presets::DEFAULT.into())),
                 output,
                 upstream,
             }],
@@ -150,6 +151,11 @@ impl Plan {
         }
     }
 
+    /// Every scene's output file (`render`) or folder (`grad`), in batch order.
+    pub fn outputs(&self) -> Vec<PathBuf> {
+        self.scenes.iter().map(|s| s.output.clone()).collect()
+    }
+
     /// Loads and checks every input and builds the batch. Files shared by several scenes
     /// are read once.
     pub fn load(&self) -> Result<Loaded> {
@@ -181,23 +187,25 @@ impl Plan {
                 NormalsSource::File(p) => match normals.get(p) {
                     Some(n) => n.clone(),
                     None => {
-                        let n = super::load_normals(p)?;
+                        let n = load_normals(p)?;
                         normals.insert(p.clone(), n.clone());
                         n
                     }
                 },
             };
             let material = match &spec.material {
-                MaterialSource::Preset(name) => crate::presets::lookup(name).ok_or_else(|| {
-                    Error::Invalid(format!(
-                        "unknown preset '{name}'; the presets are {}",
-                        crate::presets::names().join(", ")
-                    ))
-                })?,
+                MaterialSource::Preset(name) => {
+                    matedit::presets::lookup(name).ok_or_else(|| {
+                        Error::Invalid(format!(
+                            "unknown preset '{name}'; the presets are {}",
+                            matedit::presets::names().join(", ")
+                        ))
+                    })?
+                }
                 MaterialSource::File(p) => match materials.get(p) {
                     Some(m) => m.clone(),
                     None => {
-                        let m = super::load_material(p)?;
+                        let m = load_material(p)?;
                         materials.insert(p.clone(), m.clone());
                         m
                     }
@@ -231,7 +239,7 @@ impl Plan {
                         "no upstream gradient: give --upstream FILE".into()
                     }));
                 };
-                let g = super::load_upstream(path)?;
+                let g = load_upstream(path)?;
                 if (g.width, g.height) != (w, h) {
                     return Err(Error::file(
                         path,
@@ -250,7 +258,7 @@ impl Plan {
 
 impl Plan {
     /// Per scene of [`Plan::load`]'s batch (whose maps it is given), a finer map of the
-    /// same light for the continuous light (`crate::supersample`): the procedural
+    /// same light for the continuous light (`matedit::supersample`): the procedural
     /// environment generated at `factor` times the rows and columns; a file brought to the
     /// largest power-of-two multiple of its scene's map, up to `factor`, that its own size
     /// allows (none when it is no larger). Files shared by several scenes are read once.
@@ -265,13 +273,13 @@ impl Plan {
             }
             let (h, w) = (scene.env.height, scene.env.width);
             let detail = match &spec.env {
-                None => Some(crate::defaults::procedural_env(
+                None => Some(matedit::defaults::procedural_env(
                     h * factor,
                     w * factor,
                     s.convention,
                 )),
                 Some(p) => {
-                    let full = super::load_env(p, s.convention)?.env;
+                    let full = load_env(p, s.convention)?.env;
                     let mut f = factor;
                     while f >= 2 && !(full.height % (h * f) == 0 && full.width % (w * f) == 0) {
                         f /= 2;
@@ -297,10 +305,14 @@ fn load_env_sized(path: Option<&Path>, s: Settings, notes: &mut Vec<String>) -> 
                 EnvSize::Full => DEFAULT_ENV_SIZE,
                 EnvSize::Size { height, width } => (height, width),
             };
-            Ok(crate::defaults::procedural_env(height, width, s.convention))
+            Ok(matedit::defaults::procedural_env(
+                height,
+                width,
+                s.convention,
+            ))
         }
         Some(p) => {
-            let loaded = super::load_env(p, s.convention)?;
+            let loaded = load_env(p, s.convention)?;
             if loaded.clamped > 0 {
                 notes.push(format!(
                     "{}: clamped {} negative values to 0",
@@ -310,5 +322,28 @@ fn load_env_sized(path: Option<&Path>, s: Settings, notes: &mut Vec<String>) -> 
             }
             resample::fit(loaded.env, s.env_size, p)
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use matedit::io::manifest;
+
+    use super::{Plan, SceneOptions};
+
+    /// A manifest's scenes become the plan's, one for one: a scene that gives everything
+    /// and one that gives little.
+    #[test]
+    fn a_plan_has_the_manifests_scenes() {
+        let path = Path::new("in/batch.json");
+        let bytes = br#"{"convention": "paper", "env_size": "8x16", "fov": 40, "scenes": [
+            {"output": "a.png", "preset": "red-specular-plastic", "sphere": 16},
+            {"env": "sky.exr", "material": "m.json", "normals": "n.npy", "output": "b.exr",
+             "upstream": "up.npy"}]}"#;
+        let m = manifest::parse(path, bytes, None).unwrap();
+        let plan = Plan::from_manifest(&SceneOptions::default(), &m, None);
+        assert_eq!(plan.scenes.len(), m.scenes.len());
     }
 }
