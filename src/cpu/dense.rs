@@ -54,7 +54,7 @@ pub const SMALL_SCALE: f64 = 0.49;
 /// Exponent groups from which a backward pass runs every lobe through the dense kernels
 /// rather than the plan kernels. Measured on the presets (sphere 128, 64 x 128 sky, the
 /// backward call's time, plan / dense): 6 to 9 groups 1.27x to 2.08x, 2 to 4 groups 0.84x
-/// to 1.21x, 0 and 1 group 0.58x and 0.89x (`examples/cpu_kernels`).
+/// to 1.21x, 0 and 1 group 0.58x and 0.89x (`cargo xtask cpu_kernels`).
 pub const ALL_LOBES_FROM_GROUPS: usize = 5;
 
 /// An exponent from which a lobe is tested for underflow per pair block: x^m1 = 0 in f32

@@ -170,7 +170,7 @@ impl Chooser {
 
     /// The estimate the choice makes of `method` on `scene`, with every output judged
     /// (the choice stops at the first that misses): to measure the estimate against the
-    /// errors it stands for (examples/lod_estimates.rs). As in the choice, a method without
+    /// errors it stands for (xtask/src/bin/lod_estimates.rs). As in the choice, a method without
     /// a table is judged on its image alone (with an upstream gradient its dLoss/dn is
     /// infinite: the choice takes tables only then).
     pub fn estimate(
