@@ -1,5 +1,5 @@
 //! What the server computes, off the async threads: an upload decoded and checked, its
-//! decomposition ([`photo::decompose_with`]) with the pictures the page shows, and edits
+//! decomposition ([`photo::decompose`]) with the pictures the page shows, and edits
 //! at full size or as a preview through the levels of detail.
 
 use std::path::Path;
@@ -130,7 +130,7 @@ pub fn analyse(
     progress: &mut dyn FnMut(Stage),
 ) -> Result<Analysed> {
     let Upload { photo, mask } = upload;
-    let d = photo::decompose_with(renderer, nets, &photo, mask.as_deref(), options, progress)?;
+    let d = photo::decompose(renderer, nets, &photo, mask.as_deref(), options, progress)?;
     let factor = photo.width.max(photo.height).div_ceil(PREVIEW_SIDE).max(1);
     let (small, small_photo) = scaled(&d, &photo, factor);
     let preview = Preview::default();
@@ -227,20 +227,12 @@ pub fn edit_png(renderer: &Renderer, a: &Analysed, req: &EditRequest) -> Result<
             *t = t.map(|v| v * k);
         }
     }
-    let object = if req.preview {
-        let batch = Batch::single(Scene {
-            normals: d.normals.clone(),
-            env,
-            material: req.material.clone(),
-            camera: Camera::Orthographic,
-        })?;
-        let (mut images, _) =
-            renderer.render_with(&batch, &Accuracy::Tolerance(PREVIEW_TOLERANCE))?;
-        photo::place(d, &images.remove(0))
+    let accuracy = if req.preview {
+        Accuracy::Tolerance(PREVIEW_TOLERANCE)
     } else {
-        photo::render_object_under(renderer, d, req.material, &env)?
+        Accuracy::Exact
     };
-    let edit = photo::composite(photo, &object, &d.alpha);
+    let edit = d.edit(renderer, photo, req.material, Some(&env), accuracy)?;
     crate::io::png::encode_preview(&edit, &Preview::default())
 }
 
