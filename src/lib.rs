@@ -38,6 +38,7 @@
 //! - [`lod`]: levels of detail, on any backend;
 //! - the backends: [`gpu`], [`cpu`], [`reference`](mod@reference);
 //! - beneath them: [`backend`] (the [`Backend`] trait) and [`prepare`] (prepared scenes);
+//! - on images: [`raster`] (bilinear lookups, box filters, crops, blurs);
 //! - scene types: [`scene`], [`normals`], [`material`], [`envmap`], [`camera`];
 //!   built-in inputs: [`presets`], [`defaults`]; procedural lights: [`envgen`];
 //! - at the bottom: [`error`], [`spline`], [`splitmix`].
@@ -65,6 +66,7 @@ pub mod nets;
 pub mod normals;
 pub mod prepare;
 pub mod presets;
+pub mod raster;
 pub mod reference;
 pub mod renderer;
 pub mod scene;

@@ -73,9 +73,15 @@ pub(crate) fn edit_photo<'py>(
                 None => matedit::nets::Nets::builtin()?,
             };
             let renderer = matedit::Renderer::new(device)?;
-            let d = photo::decompose(&renderer, &nets, &image, mask.as_deref(), &options)?;
-            let object = photo::render_object(&renderer, &d, &target)?;
-            let edit = photo::composite(&image, &object, &d.alpha);
+            let d = photo::decompose(
+                &renderer,
+                &nets,
+                &image,
+                mask.as_deref(),
+                &options,
+                &mut |_| {},
+            )?;
+            let edit = d.edit(&renderer, &image, &target, None, matedit::Accuracy::Exact)?;
             Ok((d, edit))
         })
         .map_err(py_err)?;

@@ -7,7 +7,7 @@ use std::time::Instant;
 use matedit::edit::photo::{self, Decomposition, PhotoOptions};
 use matedit::io::{self, Format, Preview};
 use matedit::nets::Nets;
-use matedit::{Convention, Device, Image, Material, NormalMap, Renderer};
+use matedit::{Accuracy, Convention, Device, Image, Material, NormalMap, Renderer};
 use serde_json::json;
 
 use super::shared::{Failure, runtime};
@@ -97,28 +97,34 @@ pub fn run(args: &Args) -> Result<(), Failure> {
         ..PhotoOptions::default()
     };
     let load_s = t0.elapsed().as_secs_f64();
-    let d = photo::decompose(&renderer, &nets, &photo, mask.as_deref(), &options)?;
+    let d = photo::decompose(
+        &renderer,
+        &nets,
+        &photo,
+        mask.as_deref(),
+        &options,
+        &mut |_| {},
+    )?;
     let t = Instant::now();
     let (material, like) = match (target, other) {
         (Some(m), _) => (m, None),
         (None, Some((img, m))) => {
-            let o =
-                photo::decompose(&renderer, &nets, &img, m.as_deref(), &options).map_err(|e| {
-                    Failure::from(matedit::Error::Invalid(format!(
-                        "--like {}: {e}",
-                        args.like
-                            .as_ref()
-                            .map_or(String::new(), |p| p.display().to_string())
-                    )))
-                })?;
+            let o = photo::decompose(&renderer, &nets, &img, m.as_deref(), &options, &mut |_| {})
+                .map_err(|e| {
+                Failure::from(matedit::Error::Invalid(format!(
+                    "--like {}: {e}",
+                    args.like
+                        .as_ref()
+                        .map_or(String::new(), |p| p.display().to_string())
+                )))
+            })?;
             (o.material.clone(), Some(o))
         }
         (None, None) => unreachable!("clap requires --material or --like"),
     };
     let like_s = t.elapsed().as_secs_f64();
     let t = Instant::now();
-    let object = photo::render_object(&renderer, &d, &material)?;
-    let edit = photo::composite(&photo, &object, &d.alpha);
+    let edit = d.edit(&renderer, &photo, &material, None, Accuracy::Exact)?;
     let render_s = t.elapsed().as_secs_f64();
 
     let t = Instant::now();
@@ -335,10 +341,10 @@ fn compare_strip(
             .collect(),
     };
     let tiles = [
-        matedit::edit::transfer::resize(photo, pw, H),
-        matedit::edit::transfer::resize(edit, pw, H),
-        matedit::edit::transfer::resize(&normal_rgb, H, H),
-        matedit::edit::transfer::resize(sphere, H, H),
+        matedit::raster::resize(photo, pw, H),
+        matedit::raster::resize(edit, pw, H),
+        matedit::raster::resize(&normal_rgb, H, H),
+        matedit::raster::resize(sphere, H, H),
     ];
     let width = tiles.iter().map(|t| t.width).sum::<usize>() + GAP * (tiles.len() + 1);
     let height = H + 2 * GAP;

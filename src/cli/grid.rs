@@ -7,7 +7,7 @@ use matedit::edit::photo::{self, PhotoOptions};
 use matedit::edit::{dir, transfer};
 use matedit::io::{self, Format};
 use matedit::nets::Nets;
-use matedit::{Device, Renderer};
+use matedit::{Accuracy, Device, Renderer};
 
 use super::shared::{Failure, PreviewArgs, runtime, with_progress};
 
@@ -86,7 +86,14 @@ fn photos(args: &Args) -> Result<(), Failure> {
     let mut parts = Vec::new();
     for ((img, mask), path) in loaded.iter().zip(&args.fits) {
         let d = with_progress("predicting and refining", || {
-            photo::decompose(&renderer, &nets, img, mask.as_deref(), &options)
+            photo::decompose(
+                &renderer,
+                &nets,
+                img,
+                mask.as_deref(),
+                &options,
+                &mut |_| {},
+            )
         })
         .map_err(|e| Failure::from(matedit::Error::file(path, e.to_string())))?;
         parts.push(d);
@@ -97,10 +104,9 @@ fn photos(args: &Args) -> Result<(), Failure> {
         let cell = if i == j {
             img.clone()
         } else {
-            let object = photo::render_object(&renderer, d, &parts[j].material)?;
-            photo::composite(img, &object, &d.alpha)
+            d.edit(&renderer, img, &parts[j].material, None, Accuracy::Exact)?
         };
-        Ok(photo::crop_of(d, &cell))
+        Ok(d.crop_of(&cell))
     })?;
     let bytes = io::png::encode_rgb8(w, h, &rgb)?;
     io::write_atomic(&args.output, &bytes).map_err(runtime)?;

@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 
 use crate::error::{Error, Result, invalid};
 use crate::io;
+use crate::raster;
 use crate::scene::{Image, NormalMap};
 
 /// Where the object's normals come from.
@@ -141,36 +142,34 @@ impl Inputs {
         }
         let (w, h) = (self.target.width / factor, self.target.height / factor);
         let (w, h) = (w.max(1), h.max(1));
-        let src_w = self.target.width;
-        let mut normals = Vec::with_capacity(w * h);
-        let mut pixels = Vec::with_capacity(w * h);
-        let mut mask = Vec::with_capacity(w * h);
-        for y in 0..h {
-            for x in 0..w {
+        let reduced = raster::reduce(
+            (self.target.width, self.target.height),
+            (factor, factor),
+            (w, h),
+            |block| {
                 let (mut n, mut p, mut all) = ([0.0f64; 3], [0.0f64; 3], true);
                 let mut count = 0.0;
-                for yy in y * factor..((y + 1) * factor).min(self.target.height) {
-                    for xx in x * factor..((x + 1) * factor).min(src_w) {
-                        let i = yy * src_w + xx;
-                        for k in 0..3 {
-                            n[k] += f64::from(self.normals.normals[i][k]);
-                            p[k] += f64::from(self.target.pixels[i][k]);
-                        }
-                        all &= self.mask[i];
-                        count += 1.0;
+                for i in block {
+                    for k in 0..3 {
+                        n[k] += f64::from(self.normals.normals[i][k]);
+                        p[k] += f64::from(self.target.pixels[i][k]);
                     }
+                    all &= self.mask[i];
+                    count += 1.0;
                 }
                 let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
                 let keep = all && len > 1e-6;
-                normals.push(if keep {
+                let normal = if keep {
                     n.map(|v| (v / len) as f32)
                 } else {
                     [0.0; 3]
-                });
-                pixels.push(p.map(|v| (v / count) as f32));
-                mask.push(keep);
-            }
-        }
+                };
+                (normal, p.map(|v| (v / count) as f32), keep)
+            },
+        );
+        let normals = reduced.iter().map(|r| r.0).collect();
+        let pixels = reduced.iter().map(|r| r.1).collect();
+        let mask = reduced.iter().map(|r| r.2).collect();
         Inputs {
             normals: NormalMap {
                 width: w,

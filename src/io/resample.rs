@@ -11,6 +11,7 @@ use std::path::Path;
 
 use crate::envmap::EnvMap;
 use crate::error::{Error, Result};
+use crate::raster;
 
 /// Largest environment-map side accepted on the command line and in manifests.
 pub const MAX_ENV_SIDE: usize = 16384;
@@ -121,33 +122,27 @@ pub fn downsample(
     let (fy, fx) = (h / height, w / width);
     // d_omega depends on the row alone in both conventions, but ask per texel anyway: it
     // costs nothing next to decoding the file and stays right if a convention changes.
-    let mut out = Vec::with_capacity(height * width);
-    for r_out in 0..height {
-        for c_out in 0..width {
-            let mut sum = [0.0f64; 3];
-            let mut plain = [0.0f64; 3];
-            let mut weight = 0.0f64;
-            for r in r_out * fy..(r_out + 1) * fy {
-                for c in c_out * fx..(c_out + 1) * fx {
-                    let (_, d_omega) = env.convention.texel(r, c, h, w);
-                    let l = env.texels[r * w + c];
-                    for k in 0..3 {
-                        sum[k] += l[k] as f64 * d_omega;
-                        plain[k] += l[k] as f64;
-                    }
-                    weight += d_omega;
-                }
+    let out = raster::reduce((w, h), (fx, fy), (width, height), |block| {
+        let mut sum = [0.0f64; 3];
+        let mut plain = [0.0f64; 3];
+        let mut weight = 0.0f64;
+        for i in block {
+            let (_, d_omega) = env.convention.texel(i / w, i % w, h, w);
+            let l = env.texels[i];
+            for k in 0..3 {
+                sum[k] += l[k] as f64 * d_omega;
+                plain[k] += l[k] as f64;
             }
-            // A block of zero solid angle (the top row of a 'paper' map, one row high)
-            // falls back to the plain mean.
-            let texel = if weight > 0.0 {
-                sum.map(|v| (v / weight) as f32)
-            } else {
-                plain.map(|v| (v / (fy * fx) as f64) as f32)
-            };
-            out.push(texel);
+            weight += d_omega;
         }
-    }
+        // A block of zero solid angle (the top row of a 'paper' map, one row high)
+        // falls back to the plain mean.
+        if weight > 0.0 {
+            sum.map(|v| (v / weight) as f32)
+        } else {
+            plain.map(|v| (v / (fy * fx) as f64) as f32)
+        }
+    });
     Ok(EnvMap {
         height,
         width,

@@ -1,5 +1,5 @@
 //! What the server computes, off the async threads: an upload decoded and checked, its
-//! decomposition ([`photo::decompose_with`]) with the pictures the page shows, and edits
+//! decomposition ([`photo::decompose`]) with the pictures the page shows, and edits
 //! at full size or as a preview through the levels of detail.
 
 use std::path::Path;
@@ -8,6 +8,7 @@ use crate::edit::photo::{self, Crop, Decomposition, PhotoOptions, Stage};
 use crate::error::{Error, Result};
 use crate::io::png::{Preview, Tonemap};
 use crate::nets::Nets;
+use crate::raster;
 use crate::{
     Accuracy, Batch, Camera, Convention, EnvMap, Image, Material, NormalMap, Renderer, Scene,
 };
@@ -130,7 +131,7 @@ pub fn analyse(
     progress: &mut dyn FnMut(Stage),
 ) -> Result<Analysed> {
     let Upload { photo, mask } = upload;
-    let d = photo::decompose_with(renderer, nets, &photo, mask.as_deref(), options, progress)?;
+    let d = photo::decompose(renderer, nets, &photo, mask.as_deref(), options, progress)?;
     let factor = photo.width.max(photo.height).div_ceil(PREVIEW_SIDE).max(1);
     let (small, small_photo) = scaled(&d, &photo, factor);
     let preview = Preview::default();
@@ -227,20 +228,12 @@ pub fn edit_png(renderer: &Renderer, a: &Analysed, req: &EditRequest) -> Result<
             *t = t.map(|v| v * k);
         }
     }
-    let object = if req.preview {
-        let batch = Batch::single(Scene {
-            normals: d.normals.clone(),
-            env,
-            material: req.material.clone(),
-            camera: Camera::Orthographic,
-        })?;
-        let (mut images, _) =
-            renderer.render_with(&batch, &Accuracy::Tolerance(PREVIEW_TOLERANCE))?;
-        photo::place(d, &images.remove(0))
+    let accuracy = if req.preview {
+        Accuracy::Tolerance(PREVIEW_TOLERANCE)
     } else {
-        photo::render_object_under(renderer, d, req.material, &env)?
+        Accuracy::Exact
     };
-    let edit = photo::composite(photo, &object, &d.alpha);
+    let edit = d.edit(renderer, photo, req.material, Some(&env), accuracy)?;
     crate::io::png::encode_preview(&edit, &Preview::default())
 }
 
@@ -301,25 +294,23 @@ fn light_png(env: &EnvMap) -> Result<Vec<u8>> {
 /// where most of the block is on the object, the crop scaled to cover the same photo pixels.
 pub fn scaled(d: &Decomposition, photo: &Image, f: usize) -> (Decomposition, Image) {
     let (w, h) = (d.width.div_ceil(f), d.height.div_ceil(f));
-    let mut small = Image::zeros(w, h);
-    let mut alpha = vec![0f32; w * h];
-    for y in 0..h {
-        for x in 0..w {
-            let (mut sum, mut a, mut count) = ([0f32; 3], 0f32, 0f32);
-            for py in y * f..((y + 1) * f).min(d.height) {
-                for px in x * f..((x + 1) * f).min(d.width) {
-                    let i = py * d.width + px;
-                    for k in 0..3 {
-                        sum[k] += photo.pixels[i][k];
-                    }
-                    a += d.alpha[i];
-                    count += 1.0;
-                }
+    let reduced = raster::reduce((d.width, d.height), (f, f), (w, h), |block| {
+        let (mut sum, mut a, mut count) = ([0f32; 3], 0f32, 0f32);
+        for i in block {
+            for k in 0..3 {
+                sum[k] += photo.pixels[i][k];
             }
-            small.pixels[y * w + x] = sum.map(|v| v / count);
-            alpha[y * w + x] = a / count;
+            a += d.alpha[i];
+            count += 1.0;
         }
-    }
+        (sum.map(|v| v / count), a / count)
+    });
+    let small = Image {
+        width: w,
+        height: h,
+        pixels: reduced.iter().map(|r| r.0).collect(),
+    };
+    let alpha: Vec<f32> = reduced.iter().map(|r| r.1).collect();
     let x0 = d.crop.x0.div_euclid(f as i64);
     let y0 = d.crop.y0.div_euclid(f as i64);
     let end = |o: i64| (o + d.crop.size as i64 + f as i64 - 1).div_euclid(f as i64);

@@ -27,6 +27,7 @@ use crate::camera::Camera;
 use crate::envgen::colour::luminance;
 use crate::envmap::{Convention, EnvMap};
 use crate::error::{Error, Result};
+use crate::raster::{self, Columns};
 use crate::splitmix::SplitMix;
 
 /// The vertical field of view through which an orthographic camera sees an `env`
@@ -184,22 +185,16 @@ impl Photo {
     fn reduced(image: crate::scene::Image, side: usize) -> Photo {
         let f = (image.width.min(image.height) / side.max(1)).max(1);
         let (w, h) = (image.width / f, image.height / f);
-        let mut pixels = Vec::with_capacity(w * h);
         let norm = 1.0 / (f * f) as f32;
-        for y in 0..h {
-            for x in 0..w {
-                let mut s = [0.0f32; 3];
-                for dy in 0..f {
-                    let row = &image.pixels[(y * f + dy) * image.width + x * f..][..f];
-                    for p in row {
-                        for k in 0..3 {
-                            s[k] += p[k];
-                        }
-                    }
+        let pixels = raster::reduce((image.width, image.height), (f, f), (w, h), |block| {
+            let mut s = [0.0f32; 3];
+            for i in block {
+                for k in 0..3 {
+                    s[k] += image.pixels[i][k];
                 }
-                pixels.push(s.map(|v| v * norm));
             }
-        }
+            s.map(|v| v * norm)
+        });
         Photo {
             width: w,
             height: h,
@@ -209,39 +204,15 @@ impl Photo {
 
     /// Bilinear sample at continuous pixel coordinates (pixel centres at +0.5), clamped.
     fn sample(&self, x: f64, y: f64) -> [f32; 3] {
-        bilinear(
+        raster::bilinear(
             &self.pixels,
             self.width,
             self.height,
             x - 0.5,
             y - 0.5,
-            false,
+            Columns::Clamp,
         )
     }
-}
-
-/// Bilinear interpolation of a row-major raster at (x, y) in texel-centre coordinates;
-/// rows clamp, columns clamp or wrap (`wrap`).
-fn bilinear(px: &[[f32; 3]], w: usize, h: usize, x: f64, y: f64, wrap: bool) -> [f32; 3] {
-    let y = y.clamp(0.0, (h - 1) as f64);
-    let (y0, fy) = (y.floor() as usize, y - y.floor());
-    let y1 = (y0 + 1).min(h - 1);
-    let (x0, x1, fx) = if wrap {
-        let x = x.rem_euclid(w as f64);
-        let x0 = (x.floor() as usize).min(w - 1);
-        (x0, (x0 + 1) % w, x - x.floor())
-    } else {
-        let x = x.clamp(0.0, (w - 1) as f64);
-        let x0 = x.floor() as usize;
-        (x0, (x0 + 1).min(w - 1), x - x.floor())
-    };
-    let at = |r: usize, c: usize| px[r * w + c].map(f64::from);
-    let (a, b, c, d) = (at(y0, x0), at(y0, x1), at(y1, x0), at(y1, x1));
-    [0, 1, 2].map(|k| {
-        let top = a[k] + (b[k] - a[k]) * fx;
-        let bottom = c[k] + (d[k] - c[k]) * fx;
-        (top + (bottom - top) * fy) as f32
-    })
 }
 
 /// The radiance of an equirect map along direction `d` (unit), bilinear.
@@ -250,7 +221,7 @@ pub fn env_along(env: &EnvMap, d: [f64; 3]) -> [f32; 3] {
     let phi = d[2].atan2(d[0]).rem_euclid(std::f64::consts::TAU);
     let x = phi / std::f64::consts::TAU * env.width as f64 - 0.5;
     let y = theta / std::f64::consts::PI * env.height as f64 - 0.5;
-    bilinear(&env.texels, env.width, env.height, x, y, true)
+    raster::bilinear(&env.texels, env.width, env.height, x, y, Columns::Wrap)
 }
 
 /// The map's mean luminance over the sphere (solid-angle weighted).
@@ -265,41 +236,6 @@ fn mean_luminance(env: &EnvMap) -> f64 {
         }
     }
     sum / total.max(1e-300)
-}
-
-/// Separable Gaussian blur of sigma `s` pixels, edges clamped.
-fn blur(px: &mut [[f32; 3]], w: usize, h: usize, s: f64) {
-    if s <= 0.0 {
-        return;
-    }
-    let r = (3.0 * s).ceil() as isize;
-    let k: Vec<f64> = (-r..=r)
-        .map(|i| (-(i * i) as f64 / (2.0 * s * s)).exp())
-        .collect();
-    let norm: f64 = k.iter().sum();
-    let pass = |px: &[[f32; 3]], along_x: bool| -> Vec<[f32; 3]> {
-        let mut out = vec![[0.0f32; 3]; px.len()];
-        for y in 0..h as isize {
-            for x in 0..w as isize {
-                let mut acc = [0.0f64; 3];
-                for (i, kv) in (-r..=r).zip(&k) {
-                    let (xx, yy) = if along_x {
-                        ((x + i).clamp(0, w as isize - 1), y)
-                    } else {
-                        (x, (y + i).clamp(0, h as isize - 1))
-                    };
-                    let p = px[yy as usize * w + xx as usize];
-                    for c in 0..3 {
-                        acc[c] += kv * p[c] as f64;
-                    }
-                }
-                out[y as usize * w + x as usize] = acc.map(|v| (v / norm) as f32);
-            }
-        }
-        out
-    };
-    let tmp = pass(px, true);
-    px.copy_from_slice(&pass(&tmp, false));
 }
 
 impl Background {
@@ -331,7 +267,7 @@ impl Background {
                         px.push(env_along(env, [-v[0], -v[1], -v[2]]));
                     }
                 }
-                blur(&mut px, w, h, deg / fov * h as f64);
+                raster::gaussian_blur(&mut px, w, h, deg / fov * h as f64);
                 (Some(px), json!({ "env": true, "blur": deg }))
             }
             Background::Photos { photos, exposure } => {
@@ -400,17 +336,5 @@ mod tests {
                 );
             }
         }
-    }
-
-    #[test]
-    fn blur_keeps_a_constant_and_spreads_a_spike() {
-        let mut px = vec![[2.0f32; 3]; 9 * 7];
-        blur(&mut px, 9, 7, 1.5);
-        assert!(px.iter().all(|p| (p[0] - 2.0).abs() < 1e-5));
-        let mut px = vec![[0.0f32; 3]; 9 * 9];
-        px[40] = [1.0; 3];
-        blur(&mut px, 9, 9, 1.0);
-        let total: f32 = px.iter().map(|p| p[0]).sum();
-        assert!((total - 1.0).abs() < 1e-4 && px[40][0] < 0.2 && px[41][0] > 0.05);
     }
 }

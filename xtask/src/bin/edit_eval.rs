@@ -21,7 +21,9 @@ use matedit::edit::psnr;
 use matedit::io::{json, npy};
 use matedit::nets::Nets;
 use matedit::synth::{self, tar};
-use matedit::{Batch, Camera, Convention, Device, EnvMap, Image, NormalMap, Renderer, Scene};
+use matedit::{
+    Accuracy, Batch, Camera, Convention, Device, EnvMap, Image, NormalMap, Renderer, Scene,
+};
 
 struct Sample {
     image: Image,
@@ -124,14 +126,32 @@ fn main() {
     let t = Instant::now();
     let predicted: Vec<_> = samples
         .iter()
-        .map(|s| photo::decompose(&renderer, &nets, &s.image, Some(&s.mask), &options(0)).unwrap())
+        .map(|s| {
+            photo::decompose(
+                &renderer,
+                &nets,
+                &s.image,
+                Some(&s.mask),
+                &options(0),
+                &mut |_| {},
+            )
+            .unwrap()
+        })
         .collect();
     let predict_s = t.elapsed().as_secs_f64() / n as f64;
     let t = Instant::now();
     let refined: Vec<_> = samples
         .iter()
         .map(|s| {
-            photo::decompose(&renderer, &nets, &s.image, Some(&s.mask), &options(steps)).unwrap()
+            photo::decompose(
+                &renderer,
+                &nets,
+                &s.image,
+                Some(&s.mask),
+                &options(steps),
+                &mut |_| {},
+            )
+            .unwrap()
         })
         .collect();
     let refine_s = t.elapsed().as_secs_f64() / n as f64;
@@ -147,10 +167,18 @@ fn main() {
         })
         .unwrap();
         let o = renderer.render(&truth).unwrap().remove(0);
-        let o_pred = photo::render_object(&renderer, &predicted[i], m_t).unwrap();
-        let o_ref = photo::render_object(&renderer, &refined[i], m_t).unwrap();
-        let o_like = photo::render_object(&renderer, &refined[i], &refined[next].material).unwrap();
-        let i_ref_img = photo::render_object(&renderer, &refined[i], &refined[i].material).unwrap();
+        let o_pred = predicted[i]
+            .render_object(&renderer, m_t, None, Accuracy::Exact)
+            .unwrap();
+        let o_ref = refined[i]
+            .render_object(&renderer, m_t, None, Accuracy::Exact)
+            .unwrap();
+        let o_like = refined[i]
+            .render_object(&renderer, &refined[next].material, None, Accuracy::Exact)
+            .unwrap();
+        let i_ref_img = refined[i]
+            .render_object(&renderer, &refined[i].material, None, Accuracy::Exact)
+            .unwrap();
         // the photo's detail carried over: O' times (lum I / lum I')^power on the object
         let detail = |o_new: &Image, power: f32| -> Image {
             let mut out = o_new.clone();

@@ -1,0 +1,173 @@
+//! A photo to its [`Decomposition`]: the object found (or given), the nets on the square
+//! around it, then material and light refined through the layer from their predictions,
+//! and, if asked, the normals after them.
+
+use std::time::Instant;
+
+use super::check::{check_mask, check_photo};
+use super::composite::render;
+use super::crop::{crop_around, crop_image, mask_image, paste_scalar, upsample_normals};
+use super::refine::refine_normals;
+use super::{Decomposition, PhotoOptions, Stage};
+use crate::edit::fit::fit;
+use crate::edit::inputs::Inputs;
+use crate::edit::loss::psnr;
+use crate::edit::options::{Light, Options};
+use crate::error::{Result, invalid};
+use crate::nets::Nets;
+use crate::raster::{self, Crop};
+use crate::{Accuracy, EnvMap, Image, Material, NormalMap, Renderer};
+
+/// Passes of the normals net that find the mask again on the image normalised by the
+/// mask of the pass before (see [`find_object`]).
+const MASK_PASSES: usize = 3;
+
+/// Predicts and refines the decomposition of `photo` (linear RGB); `mask`, if given, is
+/// the object (else the nets find it). `progress` is called as each stage starts and after
+/// each refinement step (`&mut |_| {}` for none).
+pub fn decompose(
+    renderer: &Renderer,
+    nets: &Nets,
+    photo: &Image,
+    mask: Option<&[bool]>,
+    options: &PhotoOptions,
+    progress: &mut dyn FnMut(Stage),
+) -> Result<Decomposition> {
+    check_photo(photo)?;
+    let (w, h) = (photo.width, photo.height);
+    let n = options.net_size;
+    let t = Instant::now();
+    let found;
+    let mask = match mask {
+        Some(m) => {
+            check_mask(m, w, h)?;
+            m
+        }
+        None => {
+            found = find_object(nets, photo, n, progress)?;
+            &found
+        }
+    };
+    progress(Stage::Predict);
+    let crop = crop_around(mask, w, h);
+    let input = crop_image(photo, crop, n);
+    let small_mask: Vec<bool> = crop_image(&mask_image(mask, w, h), crop, n)
+        .pixels
+        .iter()
+        .map(|p| p[0] > 0.5)
+        .collect();
+    let p = nets.predict(&input, Some(&small_mask))?;
+    let alpha = raster::blur3(mask, w, h);
+    let normals = upsample_normals(&p.normals, crop, mask, w, h);
+    let predict_s = t.elapsed().as_secs_f64();
+
+    // refinement on the crop at the photo's resolution, box-filtered to the working size
+    let t = Instant::now();
+    let target = raster::crop(photo, crop);
+    let crop_mask: Vec<bool> = raster::crop(&mask_image(mask, w, h), crop)
+        .pixels
+        .iter()
+        .map(|p| p[0] > 0.5)
+        .collect();
+    let inputs = Inputs::new(normals.clone(), target, Some(crop_mask))?;
+    let mut fit_options = Options::new(p.material.clone(), Light::FitFrom(p.env.clone()));
+    fit_options.steps = options.steps;
+    fit_options.work_size = options.work_size;
+    let work = inputs.at_work_size(options.work_size);
+    // I' against the photo over the object, at the working size, with the given normals
+    let judge = |normals: &NormalMap, m: &Material, e: &EnvMap| -> Result<f64> {
+        let img = render(renderer, normals, e, m, Accuracy::Exact)?;
+        Ok(psnr(&img, &work.target, &work.mask))
+    };
+    let psnr_predicted = judge(&work.normals, &p.material, &p.env)?;
+    let (material, env, losses) = if options.steps == 0 {
+        (p.material.clone(), p.env.clone(), Vec::new())
+    } else {
+        let steps = options.steps;
+        progress(Stage::Refine { step: 0, steps });
+        let f = fit(renderer, &inputs, &fit_options, &mut |step, _| {
+            progress(Stage::Refine {
+                step: (step + 1).min(steps),
+                steps,
+            })
+        })?;
+        (f.material, f.env, f.losses)
+    };
+    let mut normals = normals;
+    let mut normal_losses = Vec::new();
+    let mut work_normals = work.normals.clone();
+    if options.steps > 0 && options.normal_steps > 0 {
+        let (refined, l) = refine_normals(renderer, &work, &material, &env, options, progress)?;
+        normal_losses = l;
+        normals = upsample_normals(&refined, crop, mask, w, h);
+        work_normals = refined;
+    }
+    let psnr_refined = judge(&work_normals, &material, &env)?;
+    Ok(Decomposition {
+        width: w,
+        height: h,
+        crop,
+        normals,
+        mask: mask.to_vec(),
+        alpha,
+        predicted_material: p.material,
+        predicted_env: p.env,
+        material,
+        env,
+        psnr_predicted,
+        psnr_refined,
+        losses,
+        normal_losses,
+        stages: vec![
+            ("predict", predict_s),
+            ("refine", t.elapsed().as_secs_f64()),
+        ],
+    })
+}
+
+/// The object as the nets find it on the whole photo padded to a square, at `n` x `n`:
+/// [`MASK_PASSES`] + 1 passes, each after the first on the photo normalised by the mask of
+/// the pass before; an error if what is found is empty, full, a speck or black.
+fn find_object(
+    nets: &Nets,
+    photo: &Image,
+    n: usize,
+    progress: &mut dyn FnMut(Stage),
+) -> Result<Vec<bool>> {
+    let (w, h) = (photo.width, photo.height);
+    let whole = Crop {
+        x0: (w as i64 - w.max(h) as i64) / 2,
+        y0: (h as i64 - w.max(h) as i64) / 2,
+        size: w.max(h),
+    };
+    let input = crop_image(photo, whole, n);
+    let passes = MASK_PASSES + 1;
+    progress(Stage::Mask { pass: 1, passes });
+    let mut prob = nets.predict(&input, None)?.mask_prob;
+    // the nets were trained on images normalised by the object's mean, and the first
+    // pass can only normalise by the whole image's: normalise by the mask found
+    // and find it again, a few times
+    for pass in 2..=passes {
+        let m: Vec<bool> = prob.iter().map(|&a| a > 0.5).collect();
+        if !m.iter().any(|&x| x) {
+            break;
+        }
+        progress(Stage::Mask { pass, passes });
+        prob = nets.predict(&input, Some(&m))?.mask_prob;
+    }
+    let found = paste_scalar(&prob, n, whole, w, h)
+        .iter()
+        .map(|&a| a > 0.5)
+        .collect::<Vec<_>>();
+    let lit = found
+        .iter()
+        .zip(&photo.pixels)
+        .any(|(&m, p)| m && p.iter().any(|&v| v > 0.0));
+    check_mask(&found, w, h)
+        .ok()
+        .filter(|_| lit)
+        .ok_or_else(|| {
+            invalid!("image: no object found (the nets' mask is empty, full, a speck or black); give one with --mask")
+        })?;
+    Ok(found)
+}

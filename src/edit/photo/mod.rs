@@ -1,0 +1,119 @@
+//! A material edit of an object in a photo (`matedit edit`; the paper's "approach with
+//! post-optimization"): the nets ([`crate::nets`]) predict the object's mask, normals,
+//! light and material on a square crop around the object; a fit through the layer
+//! ([`super::fit`]) refines the material and the light from those predictions until the
+//! layer re-renders the photo, and, if asked, the normals with those fixed
+//! (`refine_normals`, an experiment: docs/edit.md); the object is then rendered with
+//! another material under the refined light and normals, at the photo's resolution, and
+//! composited over the untouched background with a soft mask.
+//!
+//! The crop: the square around the mask's bounding box with the margin the nets were
+//! trained with (the object fills the frame but 5% on each side), padded with black where
+//! it leaves the photo, box-filtered to the nets' input size. Without a mask, passes on the
+//! whole photo (padded to a square) find the object: the first on the photo normalised by
+//! its mean, each next on the photo normalised by the mean over the mask found before (as
+//! the nets were trained); the last pass's mask probability, bilinear at the photo's
+//! pixels, above one half. The soft mask of the composite is the
+//! mask averaged over each pixel's 3 x 3 neighbourhood.
+//!
+//! Files: [`check`] (the photos and masks taken), [`decompose`](mod@decompose) (nets and
+//! refinement: a photo to its [`Decomposition`]), `crop.rs` (the square around the
+//! object, and values carried between it and the photo), `refine.rs` (the normals'
+//! refinement), [`composite`](mod@composite) (the edit: the object re-rendered and put
+//! over the photo).
+
+pub mod check;
+pub mod composite;
+mod crop;
+pub mod decompose;
+mod refine;
+
+pub use crate::raster::Crop;
+pub use check::{MAX_PIXELS, MAX_SIDE, MIN_OBJECT_PIXELS, MIN_SIDE, check_mask, check_photo};
+pub use composite::composite;
+pub use decompose::decompose;
+
+use crate::{EnvMap, Material, NormalMap};
+
+/// How to edit.
+#[derive(Clone, Debug)]
+pub struct PhotoOptions {
+    /// Refinement steps of material and light (0: the predictions as they are).
+    pub steps: usize,
+    /// Refinement steps of the normals after them, material and light fixed (0: none, the
+    /// default: an experiment, docs/edit.md).
+    pub normal_steps: usize,
+    /// Weight of the normals' smoothness prior (the mean squared difference between
+    /// neighbouring normals on the object).
+    pub normal_smoothness: f64,
+    /// Weight of the normals' anchor to the nets' (the mean squared difference between a
+    /// refined normal and the predicted one over the object).
+    pub normal_anchor: f64,
+    /// The refinement runs on the crop box-filtered to at most this many pixels a side.
+    pub work_size: usize,
+    /// The nets' input size (square; a multiple of 2^(levels - 1)).
+    pub net_size: usize,
+}
+
+impl Default for PhotoOptions {
+    fn default() -> Self {
+        PhotoOptions {
+            steps: 20,
+            normal_steps: 0,
+            normal_smoothness: 0.05,
+            normal_anchor: 0.0,
+            work_size: 128,
+            net_size: 64,
+        }
+    }
+}
+
+/// What the nets and the refinement made of a photo.
+#[derive(Clone, Debug)]
+pub struct Decomposition {
+    /// The photo's columns.
+    pub width: usize,
+    /// The photo's rows.
+    pub height: usize,
+    /// The crop the nets saw.
+    pub crop: Crop,
+    /// The object's normals at the crop's pixels (crop.size square; zero off the object).
+    pub normals: NormalMap,
+    /// The object at the photo's pixels.
+    pub mask: Vec<bool>,
+    /// The soft mask at the photo's pixels, in [0, 1].
+    pub alpha: Vec<f32>,
+    /// The nets' material.
+    pub predicted_material: Material,
+    /// The nets' light, in the photo's units.
+    pub predicted_env: EnvMap,
+    /// The refined material (the prediction without refinement).
+    pub material: Material,
+    /// The refined light (the prediction without refinement).
+    pub env: EnvMap,
+    /// PSNR (dB) of I' = R(n', m', L') against the photo over the object, with the
+    /// predictions and after refinement, at the refinement's working size.
+    pub psnr_predicted: f64,
+    /// As `psnr_predicted`, after refinement.
+    pub psnr_refined: f64,
+    /// The refinement's loss per step (material and light).
+    pub losses: Vec<f64>,
+    /// The normals' refinement's loss (data term and smoothness prior) at its start and
+    /// after each step taken (empty without it).
+    pub normal_losses: Vec<f64>,
+    /// Seconds per stage: "predict", "refine".
+    pub stages: Vec<(&'static str, f64)>,
+}
+
+/// A stage of [`decompose`], for a progress display.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stage {
+    /// Finding the object: pass `pass` of `passes` of the normals net on the whole photo.
+    Mask { pass: usize, passes: usize },
+    /// The nets on the crop around the object.
+    Predict,
+    /// Refining material and light: `step` of `steps` done.
+    Refine { step: usize, steps: usize },
+    /// Refining the normals: `step` of `steps` done.
+    Normals { step: usize, steps: usize },
+}
