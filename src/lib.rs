@@ -32,7 +32,7 @@
 //! - [`nets`]: the networks of `matedit.nets` (normals and mask, material, light) run on
 //!   the CPU with candle from their safetensors weights (on the scene types);
 //! - what uses the renderer: [`edit`] (a material fitted to an image), [`synth`]
-//!   (datasets), [`fit`] (the DSBRDF fitted to measured [`brdf`]s), [`io`] (files in and
+//!   (datasets), [`fit_brdf`] (the DSBRDF fitted to measured [`brdf`]s), [`io`] (files in and
 //!   out), [`supersample`] (the continuous light);
 //! - [`renderer`]: [`Device`], [`Renderer`], [`Accuracy`];
 //! - [`lod`]: levels of detail, on any backend;
@@ -57,7 +57,7 @@ pub mod edit;
 pub mod envgen;
 pub mod envmap;
 pub mod error;
-pub mod fit;
+pub mod fit_brdf;
 pub mod gpu;
 pub mod io;
 pub mod lod;

@@ -1,4 +1,4 @@
-//! Built-in materials: the 90 MERL materials fitted by [`crate::fit`] (their control
+//! Built-in materials: the 90 MERL materials fitted by [`crate::fit_brdf`] (their control
 //! points ship in `data/merl/fits.json`, which `matedit fit-brdf --nbrdf
 //! data/merl/merl_nbrdf.json --bundle data/merl/fits.json` regenerates), and a handful of
 //! plausible parameter sets made by hand. The bundle format of that file ([`Bundle`]) lives

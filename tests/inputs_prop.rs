@@ -20,7 +20,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use exr::prelude::{self as ex, WritableImage};
 use matedit::brdf::{merl, nbrdf};
 use matedit::envmap::MAX_RADIANCE;
-use matedit::fit::job::Bundle;
+use matedit::fit_brdf::job::Bundle;
 use matedit::io::{self, EnvSize, npy};
 use matedit::scene::MAX_NORMAL_LENGTH;
 use matedit::{

@@ -1,4 +1,4 @@
-//! Isotropic BRDFs that the fitter ([`crate::fit`]) and the measured-material renderer
+//! Isotropic BRDFs that the fitter ([`crate::fit_brdf`]) and the measured-material renderer
 //! ([`render`]) can evaluate: measured tables ([`merl`]), small networks fitted to them
 //! ([`nbrdf`]) and the DSBRDF itself ([`Material`] implements [`Isotropic`]).
 //!

@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use matedit::envgen::{self, Kind, Params, WhiteBalance};
+use matedit::envgen::{self, LightKind, Params, WhiteBalance};
 use matedit::io::{self, EnvSize, Format, Preview, Tonemap};
 use matedit::{Convention, Error};
 
@@ -37,7 +37,7 @@ pub struct Args {
         required_unless_present = "input",
         conflicts_with = "input"
     )]
-    kind: Option<Kind>,
+    kind: Option<LightKind>,
     /// An environment map (.exr or .npy, equirect) to augment instead of generating one.
     #[arg(long, value_name = "FILE")]
     input: Option<PathBuf>,

@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use matedit::edit::{self, Light, Shape};
+use matedit::edit::{self, Light, ObjectNormals};
 use matedit::io::EnvSize;
 use matedit::{Camera, Convention, Device, Error};
 
@@ -79,8 +79,8 @@ pub struct Args {
 pub fn run(args: &Args) -> Result<(), Failure> {
     edit::dir::check_folder(&args.output)?;
     let shape = match (&args.normals, args.sphere) {
-        (Some(p), _) => Shape::File(p.clone()),
-        (None, Some(n)) => Shape::Sphere((n != 0).then_some(n as usize)),
+        (Some(p), _) => ObjectNormals::File(p.clone()),
+        (None, Some(n)) => ObjectNormals::Sphere((n != 0).then_some(n as usize)),
         (None, None) => unreachable!("clap requires --normals or --sphere"),
     };
     let inputs = edit::Inputs::load(&args.image, &shape, args.mask.as_deref())?;

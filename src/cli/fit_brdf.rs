@@ -4,8 +4,8 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use matedit::fit::job::{self, Source};
-use matedit::fit::{Lobes, Options};
+use matedit::fit_brdf::job::{self, Source};
+use matedit::fit_brdf::{BrdfFitOptions, Lobes};
 
 use super::shared::{Failure, progress_bar, runtime};
 
@@ -95,7 +95,7 @@ pub fn run(args: &Args) -> Result<(), Failure> {
     outputs.check_bundle()?;
     let brdfs = job::load(&source)?;
     outputs.check_file(&label, brdfs.len())?;
-    let options = Options {
+    let options = BrdfFitOptions {
         lobes: args.lobes,
         tolerance: args.tolerance,
         joint: !args.no_joint,

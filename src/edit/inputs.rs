@@ -10,7 +10,7 @@ use crate::scene::{Image, NormalMap};
 
 /// Where the object's normals come from.
 #[derive(Clone, Debug, PartialEq)]
-pub enum Shape {
+pub enum ObjectNormals {
     /// A normal-map file of the image's size.
     File(PathBuf),
     /// A unit sphere filling the (square) image, which must be `N` x `N` if given.
@@ -72,11 +72,11 @@ impl Inputs {
     /// Inputs from files: the image at `image` (.exr, .npy or .png), the normals `shape`
     /// says, and `mask` (.png, .exr or .npy; first channel above half) if given. Sizes
     /// must agree; errors name the file at fault.
-    pub fn load(image: &Path, shape: &Shape, mask: Option<&Path>) -> Result<Self> {
+    pub fn load(image: &Path, shape: &ObjectNormals, mask: Option<&Path>) -> Result<Self> {
         let target = io::load_image(image)?;
         let normals = match shape {
-            Shape::File(p) => io::load_normals(p)?,
-            Shape::Sphere(n) => {
+            ObjectNormals::File(p) => io::load_normals(p)?,
+            ObjectNormals::Sphere(n) => {
                 if target.width != target.height || n.is_some_and(|n| n != target.width) {
                     return Err(Error::file(
                         image,

@@ -40,6 +40,6 @@ pub mod plot;
 pub mod transfer;
 
 pub use fit::{Fitted, fit};
-pub use inputs::{Inputs, Shape};
+pub use inputs::{Inputs, ObjectNormals};
 pub use loss::psnr;
 pub use options::{Light, Options};

@@ -1,12 +1,12 @@
 //! Procedural HDR lights for training data: lat-long `equirect` environment maps of four
 //! kinds, each a pure function of (kind, seed, size), and augmentations of any map.
 //!
-//! - [`Kind::SunSky`]: a clear sky (Preetham et al. 1999) with a sun disc of its true size
+//! - [`LightKind::SunSky`]: a clear sky (Preetham et al. 1999) with a sun disc of its true size
 //!   and a ground ([`sky::SunSky`]);
-//! - [`Kind::Overcast`]: the CIE standard overcast sky ([`sky::Overcast`]);
-//! - [`Kind::Studio`]: one to four area lights over a dark or grey surround
+//! - [`LightKind::Overcast`]: the CIE standard overcast sky ([`sky::Overcast`]);
+//! - [`LightKind::Studio`]: one to four area lights over a dark or grey surround
 //!   ([`studio::Studio`]);
-//! - [`Kind::Indoor`]: a room with a window, lit walls and an optional lamp
+//! - [`LightKind::Indoor`]: a room with a window, lit walls and an optional lamp
 //!   ([`indoor::Indoor`]).
 //!
 //! Every texel is the solid-angle-weighted mean of the light over sub-texel samples, and
@@ -15,8 +15,8 @@
 //! each kind.
 //!
 //! ```
-//! use matedit::envgen::{self, Kind};
-//! let env = envgen::generate(Kind::SunSky, 7, 32, 64)?;
+//! use matedit::envgen::{self, LightKind};
+//! let env = envgen::generate(LightKind::SunSky, 7, 32, 64)?;
 //! let turned = envgen::turn(&env, 45.0)?;
 //! # Ok::<(), matedit::Error>(())
 //! ```
@@ -38,7 +38,7 @@ pub use augment::{WhiteBalance, exposure, turn, white_balance};
 
 /// The kinds of procedural light.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Kind {
+pub enum LightKind {
     /// A clear sky with a sun and a ground.
     SunSky,
     /// The CIE overcast sky over a ground.
@@ -49,27 +49,32 @@ pub enum Kind {
     Indoor,
 }
 
-impl Kind {
+impl LightKind {
     /// Every kind.
-    pub const ALL: [Kind; 4] = [Kind::SunSky, Kind::Overcast, Kind::Studio, Kind::Indoor];
+    pub const ALL: [LightKind; 4] = [
+        LightKind::SunSky,
+        LightKind::Overcast,
+        LightKind::Studio,
+        LightKind::Indoor,
+    ];
 
     /// The name on the command line.
     pub fn name(self) -> &'static str {
         match self {
-            Kind::SunSky => "sun-sky",
-            Kind::Overcast => "overcast",
-            Kind::Studio => "studio",
-            Kind::Indoor => "indoor",
+            LightKind::SunSky => "sun-sky",
+            LightKind::Overcast => "overcast",
+            LightKind::Studio => "studio",
+            LightKind::Indoor => "indoor",
         }
     }
 
     /// A different random stream per kind from the same seed.
     fn stream(self, seed: u64) -> SplitMix {
         let salt = match self {
-            Kind::SunSky => 0x5eed_0001,
-            Kind::Overcast => 0x5eed_0002,
-            Kind::Studio => 0x5eed_0003,
-            Kind::Indoor => 0x5eed_0004,
+            LightKind::SunSky => 0x5eed_0001,
+            LightKind::Overcast => 0x5eed_0002,
+            LightKind::Studio => 0x5eed_0003,
+            LightKind::Indoor => 0x5eed_0004,
         };
         let mut rng = SplitMix(seed ^ (salt << 32));
         rng.next_u64();
@@ -77,10 +82,10 @@ impl Kind {
     }
 }
 
-impl std::str::FromStr for Kind {
+impl std::str::FromStr for LightKind {
     type Err = String;
     fn from_str(s: &str) -> std::result::Result<Self, String> {
-        Kind::ALL
+        LightKind::ALL
             .into_iter()
             .find(|k| k.name() == s)
             .ok_or_else(|| {
@@ -89,7 +94,7 @@ impl std::str::FromStr for Kind {
     }
 }
 
-impl fmt::Display for Kind {
+impl fmt::Display for LightKind {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(self.name())
     }
@@ -110,10 +115,10 @@ pub enum Params {
 
 impl Params {
     /// The parameters that `seed` draws for `kind`.
-    pub fn draw(kind: Kind, seed: u64) -> Params {
+    pub fn draw(kind: LightKind, seed: u64) -> Params {
         let mut rng = kind.stream(seed);
         match kind {
-            Kind::SunSky => Params::SunSky(sky::SunSky {
+            LightKind::SunSky => Params::SunSky(sky::SunSky {
                 elevation: 2.0 + 83.0 * rng.uniform(),
                 azimuth: 360.0 * rng.uniform(),
                 // mostly clear skies, some hazy
@@ -121,7 +126,7 @@ impl Params {
                 ground: ground_albedo(&mut rng),
                 sun: true,
             }),
-            Kind::Overcast => {
+            LightKind::Overcast => {
                 let kelvin = 5500.0 + 3000.0 * rng.uniform();
                 let tint = colour::mix([1.0; 3], colour::temperature_rgb(kelvin), 0.4);
                 Params::Overcast(sky::Overcast {
@@ -129,8 +134,8 @@ impl Params {
                     ground: ground_albedo(&mut rng),
                 })
             }
-            Kind::Studio => Params::Studio(studio::Studio::draw(&mut rng)),
-            Kind::Indoor => Params::Indoor(indoor::Indoor::draw(&mut rng)),
+            LightKind::Studio => Params::Studio(studio::Studio::draw(&mut rng)),
+            LightKind::Indoor => Params::Indoor(indoor::Indoor::draw(&mut rng)),
         }
     }
 
@@ -196,7 +201,7 @@ fn ground_albedo(rng: &mut SplitMix) -> [f64; 3] {
 
 /// The light of `kind` that `seed` draws, as a `height` x `width` equirect map: the same
 /// texels for the same (kind, seed, size) on every machine.
-pub fn generate(kind: Kind, seed: u64, height: usize, width: usize) -> Result<EnvMap> {
+pub fn generate(kind: LightKind, seed: u64, height: usize, width: usize) -> Result<EnvMap> {
     raster::check_size(height, width)?;
     Params::draw(kind, seed).env(height, width)
 }

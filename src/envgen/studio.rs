@@ -15,7 +15,7 @@ use crate::splitmix::SplitMix;
 
 /// The outline of an area light.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Shape {
+pub enum Outline {
     /// A rectangle of half-widths (u, v) in radians, measured as angles from the centre
     /// along two perpendicular great circles; u is horizontal.
     Rect(f64, f64),
@@ -29,7 +29,7 @@ pub struct AreaLight {
     /// Unit direction of its centre.
     pub dir: [f64; 3],
     /// Its outline.
-    pub shape: Shape,
+    pub shape: Outline,
     /// Radiance inside, linear RGB.
     pub radiance: [f64; 3],
     /// Width of the soft edge as a fraction of the light's size (0: a hard edge).
@@ -46,8 +46,8 @@ impl AreaLight {
         }
         // distance from the centre in units of the light's size: 1 on the outline
         let d = match self.shape {
-            Shape::Disc(r) => c.clamp(-1.0, 1.0).acos() / r,
-            Shape::Rect(hu, hv) => {
+            Outline::Disc(r) => c.clamp(-1.0, 1.0).acos() / r,
+            Outline::Rect(hu, hv) => {
                 let (t1, t2) = tangents(self.dir);
                 let u = dot(w, t1).atan2(c);
                 let v = dot(w, t2).atan2(c);
@@ -66,8 +66,8 @@ impl AreaLight {
     /// times the centre's cosine term, exact in the small-size limit).
     pub fn solid_angle(&self) -> f64 {
         match self.shape {
-            Shape::Disc(r) => 2.0 * PI * (1.0 - r.cos()),
-            Shape::Rect(hu, hv) => 4.0 * hu.sin() * hv.sin(),
+            Outline::Disc(r) => 2.0 * PI * (1.0 - r.cos()),
+            Outline::Rect(hu, hv) => 4.0 * hu.sin() * hv.sin(),
         }
     }
 }
@@ -109,12 +109,12 @@ impl Studio {
             let shape = if rng.uniform() < 0.6 {
                 let aspect = 0.3 + 0.7 * rng.uniform();
                 if rng.uniform() < 0.5 {
-                    Shape::Rect(size, size * aspect)
+                    Outline::Rect(size, size * aspect)
                 } else {
-                    Shape::Rect(size * aspect, size)
+                    Outline::Rect(size * aspect, size)
                 }
             } else {
-                Shape::Disc(size)
+                Outline::Disc(size)
             };
             let softness = if rng.uniform() < 0.5 {
                 0.0

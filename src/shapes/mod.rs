@@ -41,7 +41,7 @@ use crate::scene::NormalMap;
 
 pub use load::load_mesh;
 pub use mesh::Mesh;
-pub use procedural::{Kind, Shape};
+pub use procedural::{Shape, ShapeKind};
 pub use view::{DEFAULT_MARGIN, Rotation, View};
 
 /// `mesh` as `view`'s camera sees it: positions rotated and fitted to the frame (camera

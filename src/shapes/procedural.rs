@@ -13,7 +13,7 @@ use crate::splitmix::SplitMix;
 
 /// The kinds of shape.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Kind {
+pub enum ShapeKind {
     /// The unit sphere (no random parameters).
     Sphere,
     /// A sphere whose radius is displaced by random real spherical harmonics of degree 1
@@ -41,26 +41,26 @@ pub enum Kind {
     Random,
 }
 
-impl Kind {
+impl ShapeKind {
     /// Every kind, by its spec name.
-    pub const ALL: [(&'static str, Kind); 12] = [
-        ("sphere", Kind::Sphere),
-        ("blobby", Kind::Blobby),
-        ("superquadric", Kind::Superquadric),
-        ("torus", Kind::Torus),
-        ("capsule", Kind::Capsule),
-        ("box", Kind::Box),
-        ("cylinder", Kind::Cylinder),
-        ("plate", Kind::Plate),
-        ("limb", Kind::Limb),
-        ("extrusion", Kind::Extrusion),
-        ("union", Kind::Union),
-        ("random", Kind::Random),
+    pub const ALL: [(&'static str, ShapeKind); 12] = [
+        ("sphere", ShapeKind::Sphere),
+        ("blobby", ShapeKind::Blobby),
+        ("superquadric", ShapeKind::Superquadric),
+        ("torus", ShapeKind::Torus),
+        ("capsule", ShapeKind::Capsule),
+        ("box", ShapeKind::Box),
+        ("cylinder", ShapeKind::Cylinder),
+        ("plate", ShapeKind::Plate),
+        ("limb", ShapeKind::Limb),
+        ("extrusion", ShapeKind::Extrusion),
+        ("union", ShapeKind::Union),
+        ("random", ShapeKind::Random),
     ];
 
     /// The spec name.
     pub fn name(self) -> &'static str {
-        Kind::ALL
+        ShapeKind::ALL
             .iter()
             .find(|(_, k)| *k == self)
             .map_or("", |(n, _)| n)
@@ -68,16 +68,16 @@ impl Kind {
 }
 
 /// The kinds a union's parts and `random` draw from.
-const PARTS: [Kind; 9] = [
-    Kind::Blobby,
-    Kind::Superquadric,
-    Kind::Torus,
-    Kind::Capsule,
-    Kind::Box,
-    Kind::Cylinder,
-    Kind::Plate,
-    Kind::Limb,
-    Kind::Extrusion,
+const PARTS: [ShapeKind; 9] = [
+    ShapeKind::Blobby,
+    ShapeKind::Superquadric,
+    ShapeKind::Torus,
+    ShapeKind::Capsule,
+    ShapeKind::Box,
+    ShapeKind::Cylinder,
+    ShapeKind::Plate,
+    ShapeKind::Limb,
+    ShapeKind::Extrusion,
 ];
 
 /// A procedural shape: a kind and, optionally, its own seed. Spec syntax:
@@ -85,7 +85,7 @@ const PARTS: [Kind; 9] = [
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Shape {
     /// What is drawn.
-    pub kind: Kind,
+    pub kind: ShapeKind,
     /// The spec's seed; it takes precedence over the seed given to [`Shape::mesh`].
     pub seed: Option<u64>,
 }
@@ -95,8 +95,8 @@ impl FromStr for Shape {
 
     fn from_str(spec: &str) -> Result<Self, String> {
         let (name, options) = spec.split_once(':').unwrap_or((spec, ""));
-        let names = || Kind::ALL.map(|(n, _)| n).join(", ");
-        let kind = Kind::ALL
+        let names = || ShapeKind::ALL.map(|(n, _)| n).join(", ");
+        let kind = ShapeKind::ALL
             .iter()
             .find(|(n, _)| *n == name.trim())
             .map(|&(_, k)| k)
@@ -149,13 +149,13 @@ impl Shape {
     }
 }
 
-fn make(kind: Kind, seed: u64) -> Mesh {
+fn make(kind: ShapeKind, seed: u64) -> Mesh {
     let mut d = Draw(SplitMix(seed));
     match kind {
-        Kind::Sphere => sphere_grid(48, 96, direction),
-        Kind::Blobby => blobby(&mut d),
-        Kind::Superquadric => superquadric(&mut d),
-        Kind::Torus => {
+        ShapeKind::Sphere => sphere_grid(48, 96, direction),
+        ShapeKind::Blobby => blobby(&mut d),
+        ShapeKind::Superquadric => superquadric(&mut d),
+        ShapeKind::Torus => {
             let r = d.range(0.2, 0.5);
             torus_grid(48, 96, |u, v| {
                 let (a, b) = (2.0 * PI * u, 2.0 * PI * v);
@@ -163,13 +163,13 @@ fn make(kind: Kind, seed: u64) -> Mesh {
                 [ring * a.cos(), r * b.sin(), -ring * a.sin()]
             })
         }
-        Kind::Capsule => {
+        ShapeKind::Capsule => {
             let (r, h) = (d.range(0.25, 0.5), d.range(0.3, 1.0));
             tube(12, 16, 64, |t| [0.0, h - 2.0 * h * t, 0.0], |_| r)
         }
-        Kind::Box => cuboid([d.range(0.4, 1.0), d.range(0.4, 1.0), d.range(0.4, 1.0)]),
-        Kind::Cylinder => cylinder(d.range(0.3, 0.6), d.range(0.4, 1.2), 96),
-        Kind::Plate => {
+        ShapeKind::Box => cuboid([d.range(0.4, 1.0), d.range(0.4, 1.0), d.range(0.4, 1.0)]),
+        ShapeKind::Cylinder => cylinder(d.range(0.3, 0.6), d.range(0.4, 1.2), 96),
+        ShapeKind::Plate => {
             let (thick, width, camber) =
                 (d.range(0.04, 0.12), d.range(0.35, 0.8), d.range(-0.3, 0.3));
             sphere_grid(48, 96, |t, p| {
@@ -177,7 +177,7 @@ fn make(kind: Kind, seed: u64) -> Mesh {
                 [v[0], thick * v[1] + camber * v[0] * v[0], width * v[2]]
             })
         }
-        Kind::Limb => {
+        ShapeKind::Limb => {
             let (bend, r0) = (d.range(0.15, 0.7), d.range(0.08, 0.16));
             let taper = d.range(0.45, 1.0);
             // a quadratic Bezier from (-1, 0) over (0, 2 bend) to (1, 0)
@@ -189,7 +189,7 @@ fn make(kind: Kind, seed: u64) -> Mesh {
                 move |t| r0 * (1.0 + (taper - 1.0) * t),
             )
         }
-        Kind::Extrusion => {
+        ShapeKind::Extrusion => {
             let k = 5 + d.below(8);
             let star: Vec<[f64; 2]> = (0..k)
                 .map(|i| {
@@ -200,8 +200,8 @@ fn make(kind: Kind, seed: u64) -> Mesh {
                 .collect();
             prism(&star, d.range(0.15, 0.6))
         }
-        Kind::Union => union(&mut d),
-        Kind::Random => make(PARTS[d.below(PARTS.len())], d.0.next_u64()),
+        ShapeKind::Union => union(&mut d),
+        ShapeKind::Random => make(PARTS[d.below(PARTS.len())], d.0.next_u64()),
     }
 }
 
@@ -318,7 +318,7 @@ mod tests {
     #[test]
     fn specs_parse_and_print() {
         let s: Shape = "torus:seed=3".parse().unwrap();
-        assert_eq!((s.kind, s.seed), (Kind::Torus, Some(3)));
+        assert_eq!((s.kind, s.seed), (ShapeKind::Torus, Some(3)));
         assert_eq!(s.to_string(), "torus:seed=3");
         assert_eq!("union".parse::<Shape>().unwrap().seed, None);
         let e = "blobbi".parse::<Shape>().unwrap_err();
@@ -374,7 +374,7 @@ mod tests {
 
     #[test]
     fn every_kind_makes_a_valid_mesh() {
-        for (name, kind) in Kind::ALL {
+        for (name, kind) in ShapeKind::ALL {
             for seed in 0..3 {
                 let m = make(kind, seed);
                 assert_eq!(m.validate(), Ok(()), "{name} seed {seed}");

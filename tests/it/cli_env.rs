@@ -5,7 +5,7 @@
 use std::path::Path;
 
 use assert_cmd::cargo::cargo_bin_cmd;
-use matedit::envgen::{self, Kind, Params, WhiteBalance};
+use matedit::envgen::{self, LightKind, Params, WhiteBalance};
 use matedit::{Convention, EnvMap, io};
 
 fn matedit() -> assert_cmd::Command {
@@ -25,7 +25,7 @@ fn load(p: &Path) -> EnvMap {
 #[test]
 fn every_kind_written_and_rendered() {
     let dir = tempfile::tempdir().unwrap();
-    for kind in Kind::ALL {
+    for kind in LightKind::ALL {
         let out = dir.path().join(format!("{kind}.exr"));
         let o = matedit()
             .args([
@@ -78,7 +78,7 @@ fn npy_and_png_outputs() {
         .args(["--turn", "30", "--exposure", "-1", "-o", path_str(&npy)])
         .assert()
         .success();
-    let want = envgen::generate(Kind::Studio, 9, 8, 16).unwrap();
+    let want = envgen::generate(LightKind::Studio, 9, 8, 16).unwrap();
     let want = envgen::exposure(&envgen::turn(&want, 30.0).unwrap(), -1.0).unwrap();
     assert_eq!(load(&npy), want);
     let png = dir.path().join("s.png");
@@ -122,7 +122,7 @@ fn sun_options_override_the_draw() {
         ])
         .assert()
         .success();
-    let Params::SunSky(mut p) = Params::draw(Kind::SunSky, 0) else {
+    let Params::SunSky(mut p) = Params::draw(LightKind::SunSky, 0) else {
         unreachable!()
     };
     (p.elevation, p.azimuth, p.turbidity) = (4.0, -30.0, 5.0);
@@ -133,7 +133,7 @@ fn sun_options_override_the_draw() {
 fn input_file_is_augmented() {
     let dir = tempfile::tempdir().unwrap();
     let src = dir.path().join("src.exr");
-    let base = envgen::generate(Kind::SunSky, 1, 16, 32).unwrap();
+    let base = envgen::generate(LightKind::SunSky, 1, 16, 32).unwrap();
     io::write_env(&src, &base, &Default::default()).unwrap();
     let out = dir.path().join("out.exr");
     matedit()

@@ -6,7 +6,7 @@
 use matedit::envgen::colour::luminance;
 use matedit::envgen::raster::{direction, texel_of};
 use matedit::envgen::sky::{Overcast, SUN_RADIUS, SunSky};
-use matedit::envgen::{self, Kind, Params, WhiteBalance};
+use matedit::envgen::{self, LightKind, Params, WhiteBalance};
 use matedit::{Batch, Camera, Convention, Device, EnvMap, Material, NormalMap, Renderer, Scene};
 
 fn power(e: &EnvMap) -> [f64; 3] {
@@ -51,7 +51,7 @@ fn sky(elevation: f64, azimuth: f64, turbidity: f64) -> SunSky {
 
 #[test]
 fn same_seed_same_map_other_seed_other_map() {
-    for kind in Kind::ALL {
+    for kind in LightKind::ALL {
         let a = envgen::generate(kind, 3, 16, 32).unwrap();
         let b = envgen::generate(kind, 3, 16, 32).unwrap();
         let c = envgen::generate(kind, 4, 16, 32).unwrap();
@@ -62,7 +62,7 @@ fn same_seed_same_map_other_seed_other_map() {
 
 #[test]
 fn every_kind_finite_non_negative_at_any_size() {
-    for kind in Kind::ALL {
+    for kind in LightKind::ALL {
         for seed in 0..6 {
             for (h, w) in [(1, 2), (7, 13), (32, 64)] {
                 let e = envgen::generate(kind, seed, h, w).unwrap();
@@ -81,7 +81,7 @@ fn every_kind_finite_non_negative_at_any_size() {
             }
         }
     }
-    assert!(envgen::generate(Kind::Studio, 0, 0, 8).is_err());
+    assert!(envgen::generate(LightKind::Studio, 0, 0, 8).is_err());
 }
 
 #[test]
@@ -202,7 +202,7 @@ fn ground_is_lit_by_sky_and_sun() {
     // a Lambertian ground: radiance = albedo x (the map's horizontal illuminance) / pi
     let (h, w) = (64, 128);
     for seed in 0..8 {
-        let Params::SunSky(p) = Params::draw(Kind::SunSky, seed) else {
+        let Params::SunSky(p) = Params::draw(LightKind::SunSky, seed) else {
             unreachable!()
         };
         let e = p.env(h, w).unwrap();
@@ -254,7 +254,7 @@ fn overcast_zenith_is_three_times_the_horizon() {
 #[test]
 fn studio_lights_hold_most_of_the_energy() {
     for seed in 0..16 {
-        let e = envgen::generate(Kind::Studio, seed, 64, 128).unwrap();
+        let e = envgen::generate(LightKind::Studio, seed, 64, 128).unwrap();
         let median = median_luminance(&e);
         let total = luminance(power(&e));
         let bright: f64 = e
@@ -279,7 +279,7 @@ fn studio_lights_hold_most_of_the_energy() {
 #[test]
 fn indoor_window_is_brighter_than_the_wall_beside_it() {
     for seed in 0..12 {
-        let Params::Indoor(room) = Params::draw(Kind::Indoor, seed) else {
+        let Params::Indoor(room) = Params::draw(LightKind::Indoor, seed) else {
             unreachable!()
         };
         let e = room.env(64, 128).unwrap();
@@ -315,7 +315,7 @@ fn indoor_window_is_brighter_than_the_wall_beside_it() {
 fn every_kind_renders_a_sphere() {
     let renderer = Renderer::new(Device::Cpu).unwrap();
     let material = Material::constant("plastic", [(0.5, 0.0), (2.0, 50.0), (0.0, 0.0)]).unwrap();
-    for kind in Kind::ALL {
+    for kind in LightKind::ALL {
         let scene = Scene {
             normals: NormalMap::sphere(16),
             env: envgen::generate(kind, 1, 16, 32).unwrap(),
@@ -359,7 +359,7 @@ fn whole_column_turn_is_a_roll() {
 
 #[test]
 fn turn_keeps_power_and_composes() {
-    let e = envgen::generate(Kind::SunSky, 2, 32, 64).unwrap();
+    let e = envgen::generate(LightKind::SunSky, 2, 32, 64).unwrap();
     let p0 = power(&e);
     for deg in [17.3, -123.45, 0.01, 359.9] {
         let p = power(&envgen::turn(&e, deg).unwrap());
@@ -375,7 +375,7 @@ fn turn_keeps_power_and_composes() {
         assert!((x - y).abs() <= 1e-5 * y.abs().max(1.0), "{x} vs {y}");
     }
     // two fractional turns move the light's centre of power by their sum
-    let studio = envgen::generate(Kind::Studio, 5, 32, 64).unwrap();
+    let studio = envgen::generate(LightKind::Studio, 5, 32, 64).unwrap();
     let centre = |e: &EnvMap| {
         let (mut x, mut z) = (0.0, 0.0);
         for (i, t) in e.texels.iter().enumerate() {
@@ -443,6 +443,6 @@ fn bad_parameters_are_named() {
     assert!(err.contains("sun elevation") && err.contains("95"), "{err}");
     let err = sky(30.0, 0.0, 12.0).env(8, 16).unwrap_err().to_string();
     assert!(err.contains("turbidity"), "{err}");
-    assert!("sunny".parse::<Kind>().is_err());
-    assert_eq!("indoor".parse::<Kind>(), Ok(Kind::Indoor));
+    assert!("sunny".parse::<LightKind>().is_err());
+    assert_eq!("indoor".parse::<LightKind>(), Ok(LightKind::Indoor));
 }

@@ -8,9 +8,9 @@ use std::path::Path;
 use assert_cmd::cargo::cargo_bin_cmd;
 use matedit::Material;
 use matedit::brdf::{Isotropic, merl, nbrdf};
-use matedit::fit::job::Bundle;
-use matedit::fit::samples::{Grid, Tabulated};
-use matedit::fit::{Lobes, Options, fit, joint};
+use matedit::fit_brdf::job::Bundle;
+use matedit::fit_brdf::samples::{Grid, Tabulated};
+use matedit::fit_brdf::{BrdfFitOptions, Lobes, fit, joint};
 use matedit::material::idx;
 
 const NBRDF: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/data/merl/merl_nbrdf.json");
@@ -41,10 +41,10 @@ fn shipped_fits_match_a_refit() {
             .expect("shipped fit");
         // the presets were made before the joint refinement and its broader judge, with
         // 5% slack for fewer lobes
-        let options = Options {
+        let options = BrdfFitOptions {
             joint: false,
             tolerance: 0.05,
-            ..Options::default()
+            ..BrdfFitOptions::default()
         };
         let refit = fit(net, name, &options).expect("fit");
         assert_eq!(refit.best().lobes, shipped.lobes, "{name}");
@@ -164,7 +164,7 @@ fn fits_a_merl_table_from_the_command_line() {
     assert_eq!(m.name, "analytic");
     assert!(stderr(&out).contains("analytic:"), "{}", stderr(&out));
     // The fit reproduces the table: the BRDF error of the written material is small.
-    let error = matedit::fit::brdf_error(&m, &merl::read(&table).unwrap());
+    let error = matedit::fit_brdf::brdf_error(&m, &merl::read(&table).unwrap());
     assert!(error < 0.05, "BRDF error {error}");
 }
 
@@ -199,9 +199,9 @@ fn fits_one_nbrdf_material_and_writes_a_bundle() {
     let lib = fit(
         net,
         "gold-paint",
-        &Options {
+        &BrdfFitOptions {
             lobes: Lobes::Fixed(2),
-            ..Options::default()
+            ..BrdfFitOptions::default()
         },
     )
     .unwrap();
@@ -274,10 +274,10 @@ fn sign_changing() -> Material {
 /// recover far better than its start.
 #[test]
 fn joint_refinement_lowers_the_brdf_error_of_its_start() {
-    let staged = Options {
+    let staged = BrdfFitOptions {
         lobes: Lobes::Fixed(2),
         joint: false,
-        ..Options::default()
+        ..BrdfFitOptions::default()
     };
     let truth = sign_changing();
     let brdfs: [(&dyn Isotropic, &str); 2] = [(&Analytic, "analytic"), (&truth, "sign-changing")];
@@ -308,23 +308,23 @@ fn default_fit_recovers_sign_changing_scales() {
     let staged = fit(
         &truth,
         "t",
-        &Options {
+        &BrdfFitOptions {
             lobes: Lobes::Fixed(2),
             joint: false,
-            ..Options::default()
+            ..BrdfFitOptions::default()
         },
     )
     .unwrap();
     let full = fit(
         &truth,
         "t",
-        &Options {
+        &BrdfFitOptions {
             lobes: Lobes::Fixed(2),
-            ..Options::default()
+            ..BrdfFitOptions::default()
         },
     )
     .unwrap();
-    let judge = matedit::fit::judge::Judge::broad(&truth).unwrap();
+    let judge = matedit::fit_brdf::judge::Judge::broad(&truth).unwrap();
     let (a, b) = (
         judge.error(&staged.best().material),
         judge.error(&full.best().material),

@@ -2,7 +2,7 @@
 //! caster and the analytic sphere, winding, facing the viewer, filling the frame, and
 //! seeded shapes. Mesh files: tests/shapes_files.rs.
 
-use matedit::shapes::{self, Kind, Mesh, Rotation, Shape, View, tessellate};
+use matedit::shapes::{self, Mesh, Rotation, Shape, ShapeKind, View, tessellate};
 use matedit::{Camera, NormalMap};
 
 type V3 = [f64; 3];
@@ -193,22 +193,22 @@ fn views() -> Vec<(String, View)> {
 #[test]
 fn normals_agree_with_a_ray_caster() {
     let sphere = Shape {
-        kind: Kind::Sphere,
+        kind: ShapeKind::Sphere,
         seed: None,
     }
     .mesh(0);
     let cube = Shape {
-        kind: Kind::Box,
+        kind: ShapeKind::Box,
         seed: None,
     }
     .mesh(4);
     let blob = Shape {
-        kind: Kind::Blobby,
+        kind: ShapeKind::Blobby,
         seed: None,
     }
     .mesh(2);
     let torus = Shape {
-        kind: Kind::Torus,
+        kind: ShapeKind::Torus,
         seed: None,
     }
     .mesh(1);
@@ -229,7 +229,7 @@ fn normals_agree_with_a_ray_caster() {
 fn a_sphere_mesh_matches_the_analytic_sphere() {
     let n = 96;
     let mesh = Shape {
-        kind: Kind::Sphere,
+        kind: ShapeKind::Sphere,
         seed: None,
     }
     .mesh(0);
@@ -263,7 +263,7 @@ fn seeded_shapes_are_deterministic_and_differ() {
         rotation: Rotation::random(5),
         ..View::new(32, 32)
     };
-    for (name, kind) in Kind::ALL {
+    for (name, kind) in ShapeKind::ALL {
         let shape = Shape { kind, seed: None };
         let a = shape.mesh(1);
         assert_eq!(a, shape.mesh(1), "{name}");
@@ -273,7 +273,7 @@ fn seeded_shapes_are_deterministic_and_differ() {
             shapes::render_normals(&shape.mesh(1), &view).unwrap().0,
             "{name}"
         );
-        if kind != Kind::Sphere {
+        if kind != ShapeKind::Sphere {
             assert_ne!(a, shape.mesh(2), "{name}: seeds 1 and 2 give the same mesh");
             assert_ne!(
                 na,
@@ -293,7 +293,7 @@ fn seeded_shapes_are_deterministic_and_differ() {
 
 #[test]
 fn normals_face_the_viewer_and_fill_the_frame() {
-    for (name, kind) in Kind::ALL {
+    for (name, kind) in ShapeKind::ALL {
         for camera in [
             Camera::Orthographic,
             Camera::Perspective { fov_y_deg: 60.0 },
@@ -346,7 +346,7 @@ fn winding_does_not_matter() {
     // the shape carries) and flat; an open bowl (the lower half of a sphere) seen from
     // above shows its inside, with normals facing the viewer
     let mesh = Shape {
-        kind: Kind::Blobby,
+        kind: ShapeKind::Blobby,
         seed: None,
     }
     .mesh(4);

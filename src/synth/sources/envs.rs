@@ -34,7 +34,7 @@ pub struct EnvSource {
     pub maps: Vec<(String, EnvMap)>,
     /// A procedural light ([`crate::envgen`]) generated per sample at the env size, its
     /// parameters drawn per sample.
-    pub procedural: Option<crate::envgen::Kind>,
+    pub procedural: Option<crate::envgen::LightKind>,
     /// How each sample turns, exposes and white-balances its map.
     pub augment: EnvAugment,
 }

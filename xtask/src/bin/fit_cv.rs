@@ -20,8 +20,8 @@
 //! PSNR over the sphere's pixels with the measured image's largest value as the peak, as
 //! `xtask/src/bin/merl_report.rs` measures.
 //!
-//! Methods: `current` is `matedit::fit::fit` without the joint refinement, `joint` the
-//! plain joint least-squares fit of the 108 control points (`matedit::fit::joint::plain`),
+//! Methods: `current` is `matedit::fit_brdf::fit` without the joint refinement, `joint` the
+//! plain joint least-squares fit of the 108 control points (`matedit::fit_brdf::joint::plain`),
 //! `new` the fitter's defaults. `oracle` is not a fitter: `new`'s fit moved by Adam through
 //! the layer towards the measured images under every map, the held-out one included (see
 //! [`oracle`]); what it reaches shows how far the DSBRDF itself can go from the fit's
@@ -35,8 +35,8 @@ use std::time::Instant;
 
 use matedit::brdf::nbrdf::{self, Nbrdf};
 use matedit::brdf::render::render_measured;
-use matedit::fit::samples::Grid;
-use matedit::fit::{Options, fit, joint};
+use matedit::fit_brdf::samples::Grid;
+use matedit::fit_brdf::{BrdfFitOptions, fit, joint};
 use matedit::{Batch, Camera, Device, EnvMap, Image, Material, NormalMap, Renderer, Scene};
 use rayon::prelude::*;
 
@@ -101,7 +101,7 @@ fn args() -> Result<Args, String> {
         only_maps: None,
         limit: None,
         methods: vec![Method::Current, Method::Joint, Method::New],
-        tolerance: Options::default().tolerance,
+        tolerance: BrdfFitOptions::default().tolerance,
         sphere: 64,
         env_size: (64, 128),
         cache: None,
@@ -360,14 +360,14 @@ fn stats(v: &[f64]) -> (f64, f64, f64) {
 fn fit_one(method: Method, net: &Nbrdf, tolerance: f64) -> Result<(Material, usize), String> {
     let options = match method {
         // the fitter as it was: no joint refinement, 5% slack for fewer lobes
-        Method::Current => Options {
+        Method::Current => BrdfFitOptions {
             joint: false,
             tolerance: 0.05,
-            ..Options::default()
+            ..BrdfFitOptions::default()
         },
-        _ => Options {
+        _ => BrdfFitOptions {
             tolerance,
-            ..Options::default()
+            ..BrdfFitOptions::default()
         },
     };
     match method {

@@ -19,7 +19,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use matedit::envgen::sky::SunSky;
-use matedit::envgen::{self, Kind};
+use matedit::envgen::{self, LightKind};
 use matedit::io::png::{Preview, encode_preview};
 use matedit::io::{Tonemap, write_atomic};
 use matedit::{Batch, Camera, Device, Image, NormalMap, Renderer, Scene, presets};
@@ -75,7 +75,7 @@ fn run() -> Result<(), String> {
 
     let mut maps = Vec::new();
     let mut spheres = Vec::new();
-    for kind in Kind::ALL {
+    for kind in LightKind::ALL {
         let mut map_row = Vec::new();
         let mut sphere_row = Vec::new();
         for seed in 0..seeds {
@@ -193,7 +193,7 @@ fn builtin_sun_to_sky() {
 fn timings() -> Result<(), String> {
     println!("| kind | 64 x 128 | 256 x 512 |");
     println!("| --- | ---: | ---: |");
-    for kind in Kind::ALL {
+    for kind in LightKind::ALL {
         let mut row = format!("| {kind} |");
         for (h, w) in [(64, 128), (256, 512)] {
             let start = Instant::now();

@@ -18,7 +18,7 @@ use std::time::Instant;
 
 use matedit::brdf::nbrdf::{self, Nbrdf};
 use matedit::brdf::render::render_measured;
-use matedit::fit::{Fitted, Options, fit};
+use matedit::fit_brdf::{BrdfFitOptions, FittedBrdf, fit};
 use matedit::{Batch, Camera, Device, Image, NormalMap, Renderer, Scene};
 use plotters::prelude::*;
 use plotters::style::FontStyle;
@@ -82,7 +82,7 @@ fn errors(fitted: &Image, measured: &Image, mask: &[bool]) -> (f64, f64) {
 /// One material's results: per lobe count (1, 2, 3), per env map, (relative RMSE, PSNR).
 struct Row {
     name: String,
-    fitted: Fitted,
+    fitted: FittedBrdf,
     seconds: f64,
     by_lobes: Vec<Vec<(f64, f64)>>,
     /// The contact sheet's pair: fitted (chosen) and measured, under the first map.
@@ -127,11 +127,11 @@ fn run() -> Result<(), String> {
 
     // Fits first (timed on their own, all cores), then the renders.
     let start = Instant::now();
-    let fits: Vec<(Fitted, f64)> = nets
+    let fits: Vec<(FittedBrdf, f64)> = nets
         .par_iter()
         .map(|n| {
             let t = Instant::now();
-            let f = fit(n, &n.name, &Options::default()).map_err(|e| e.to_string())?;
+            let f = fit(n, &n.name, &BrdfFitOptions::default()).map_err(|e| e.to_string())?;
             Ok((f, t.elapsed().as_secs_f64()))
         })
         .collect::<Result<_, String>>()?;
@@ -301,7 +301,7 @@ fn report(a: &Args, rows: &[Row], envs: &[&str], fit_seconds: f64) -> String {
     let _ = writeln!(
         s,
         "Each material of `data/merl/merl_nbrdf.json` is fitted with 1, 2 and 3 lobes \
-         (`matedit::fit::fit`, defaults); the preset keeps the fewest lobes whose BRDF error is \
+         (`matedit::fit_brdf::fit`, defaults); the preset keeps the fewest lobes whose BRDF error is \
          within 5% of the 3-lobe fit's. Each fit is rendered on a {0} x {0} sphere \
          (orthographic) under each HDRI ({1}, resampled to {2} x {3}) with the fast CPU path, \
          and compared with the same sphere rendered with the measured BRDF itself: the network \

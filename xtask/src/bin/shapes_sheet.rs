@@ -9,7 +9,7 @@
 use std::path::PathBuf;
 
 use matedit::io;
-use matedit::shapes::{self, Kind, Rotation, Shape, View};
+use matedit::shapes::{self, Rotation, Shape, ShapeKind, View};
 
 const SEEDS: [u64; 3] = [1, 2, 3];
 
@@ -20,10 +20,10 @@ fn main() -> matedit::Result<()> {
             .unwrap_or_else(|| "docs/shapes/sheet.png".into()),
     );
     let tile: usize = args.next().and_then(|a| a.parse().ok()).unwrap_or(96);
-    let kinds: Vec<Kind> = Kind::ALL
+    let kinds: Vec<ShapeKind> = ShapeKind::ALL
         .iter()
         .map(|&(_, k)| k)
-        .filter(|&k| k != Kind::Random)
+        .filter(|&k| k != ShapeKind::Random)
         .collect();
     let (w, h) = (kinds.len() * tile, SEEDS.len() * tile);
     let mut rgb = vec![48u8; w * h * 3];

@@ -24,13 +24,13 @@ pub enum Lobes {
     /// Exactly this many (1 to 3).
     Fixed(usize),
     /// 1, 2 and 3, keeping the fewest whose error (the judge's, else the BRDF error) is
-    /// within [`Options::tolerance`] of the best's.
+    /// within [`BrdfFitOptions::tolerance`] of the best's.
     Auto,
 }
 
 /// The fitter's settings.
 #[derive(Clone, Debug)]
-pub struct Options {
+pub struct BrdfFitOptions {
     /// Lobe count.
     pub lobes: Lobes,
     /// Relative slack over the best error allowed to a fit with fewer lobes (0: the best
@@ -51,9 +51,9 @@ pub struct Options {
     pub joint: bool,
 }
 
-impl Default for Options {
+impl Default for BrdfFitOptions {
     fn default() -> Self {
-        Options {
+        BrdfFitOptions {
             lobes: Lobes::Auto,
             tolerance: 0.0,
             loss_scale: 1.0,
@@ -80,7 +80,7 @@ pub struct Fit {
 
 /// The fits tried for one BRDF.
 #[derive(Clone, Debug)]
-pub struct Fitted {
+pub struct FittedBrdf {
     /// One fit per lobe count tried, ascending.
     pub fits: Vec<Fit>,
     /// Index into `fits` of the one kept.
@@ -90,7 +90,7 @@ pub struct Fitted {
     pub floor: f64,
 }
 
-impl Fitted {
+impl FittedBrdf {
     /// The fit kept.
     pub fn best(&self) -> &Fit {
         &self.fits[self.chosen]
@@ -110,11 +110,11 @@ const FINAL_STEPS: usize = 120;
 /// The lobes' shapes are found on the channels' mean, nested: the best 1-lobe fit over
 /// [`START_EXPONENTS`], then each next lobe added to the previous best with each start
 /// exponent. Each channel is then refined from the mean's fit; candidates refined with
-/// other losses, and (with [`Options::joint`]) the judge's pick refined by [`joint`] least
+/// other losses, and (with [`BrdfFitOptions::joint`]) the judge's pick refined by [`joint`] least
 /// squares, are judged by their images ([`judge`]). Deterministic: fixed order, and the
 /// judge's renders are bitwise equal for any thread count (the fast CPU path's SIMD
 /// instruction set, chosen at run time, may round differently on another machine).
-pub fn fit(brdf: &dyn Isotropic, name: &str, options: &Options) -> Result<Fitted> {
+pub fn fit(brdf: &dyn Isotropic, name: &str, options: &BrdfFitOptions) -> Result<FittedBrdf> {
     let counts: Vec<usize> = match options.lobes {
         Lobes::Fixed(n) if (1..=N_LOBES).contains(&n) => vec![n],
         Lobes::Fixed(n) => {
@@ -304,7 +304,7 @@ pub fn fit(brdf: &dyn Isotropic, name: &str, options: &Options) -> Result<Fitted
         .iter()
         .position(|f| score(f) <= best * (1.0 + options.tolerance))
         .expect("the best fit qualifies");
-    Ok(Fitted {
+    Ok(FittedBrdf {
         fits,
         chosen,
         floor: table.floor(),
@@ -398,9 +398,9 @@ mod tests {
             }
         }
         let truth = Material::new("truth", &ctrl).unwrap();
-        let options = Options {
+        let options = BrdfFitOptions {
             lobes: Lobes::Fixed(2),
-            ..Options::default()
+            ..BrdfFitOptions::default()
         };
         let f = fit(&truth, "fitted", &options).unwrap();
         assert_eq!(f.fits.len(), 1);
@@ -416,9 +416,9 @@ mod tests {
         let e = fit(
             &m,
             "m",
-            &Options {
+            &BrdfFitOptions {
                 lobes: Lobes::Fixed(4),
-                ..Options::default()
+                ..BrdfFitOptions::default()
             },
         );
         assert!(e.unwrap_err().to_string().contains("4 lobes"));

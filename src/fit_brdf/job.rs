@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 
 use rayon::prelude::*;
 
-use super::{Fitted, Options, fit};
+use super::{BrdfFitOptions, FittedBrdf, fit};
 use crate::brdf::{Isotropic, merl, nbrdf};
 use crate::error::{Error, Result};
 use crate::io;
@@ -76,9 +76,9 @@ pub fn load(source: &Source) -> Result<Vec<Named>> {
 /// on the thread count); `done` is called after each.
 pub fn fit_all(
     brdfs: &[Named],
-    options: &Options,
+    options: &BrdfFitOptions,
     done: &(dyn Fn() + Sync),
-) -> Result<Vec<Fitted>> {
+) -> Result<Vec<FittedBrdf>> {
     brdfs
         .par_iter()
         .map(|b| {
@@ -90,7 +90,7 @@ pub fn fit_all(
 }
 
 /// One line describing a fit: lobes kept and the errors of each count tried.
-pub fn describe(fitted: &Fitted) -> String {
+pub fn describe(fitted: &FittedBrdf) -> String {
     let best = fitted.best();
     let tried: Vec<String> = fitted
         .fits
@@ -129,7 +129,7 @@ fn psnr(ratio: f64) -> f64 {
 }
 
 /// The bundle of `fits` made from `source`.
-pub fn bundle(source: &str, fits: &[Fitted]) -> Bundle {
+pub fn bundle(source: &str, fits: &[FittedBrdf]) -> Bundle {
     let mut materials: Vec<BundleEntry> = fits
         .iter()
         .map(|f| BundleEntry {
@@ -197,7 +197,7 @@ impl Outputs<'_> {
 
     /// Writes the fits made from `source`: the material file and the bundle together (both
     /// or neither), then the folder; the paths written.
-    pub fn write(&self, fits: &[Fitted], source: &str) -> Result<Vec<PathBuf>> {
+    pub fn write(&self, fits: &[FittedBrdf], source: &str) -> Result<Vec<PathBuf>> {
         let mut staged = Vec::new();
         if let (Some(o), Some(f)) = (self.file(), fits.first()) {
             let bytes =
@@ -216,7 +216,7 @@ impl Outputs<'_> {
 }
 
 /// Writes each fit's material as NAME.json into `dir` (created if missing), all or none.
-pub fn write_folder(dir: &Path, fits: &[Fitted], source: &str) -> Result<Vec<PathBuf>> {
+pub fn write_folder(dir: &Path, fits: &[FittedBrdf], source: &str) -> Result<Vec<PathBuf>> {
     std::fs::create_dir_all(dir)
         .map_err(|e| Error::file(dir, format!("cannot create the folder: {e}")))?;
     let mut staged = Vec::with_capacity(fits.len());
@@ -230,6 +230,6 @@ pub fn write_folder(dir: &Path, fits: &[Fitted], source: &str) -> Result<Vec<Pat
 }
 
 /// The description written into a fitted material's file.
-pub fn description(f: &Fitted, source: &str) -> String {
+pub fn description(f: &FittedBrdf, source: &str) -> String {
     format!("fitted by matedit fit-brdf to {source}: {}", describe(f))
 }

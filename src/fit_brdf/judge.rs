@@ -14,7 +14,7 @@ use crate::brdf::Isotropic;
 use crate::brdf::render::render_measured;
 use crate::camera::Camera;
 use crate::defaults::procedural_env;
-use crate::envgen::Kind;
+use crate::envgen::LightKind;
 use crate::envmap::{Convention, EnvMap};
 use crate::error::Result;
 use crate::material::Material;
@@ -26,7 +26,7 @@ use crate::scene::{Batch, NormalMap, Scene};
 const SPHERE: usize = 32;
 const ENV: (usize, usize) = (32, 64);
 /// The broad lights' kinds and the seed that draws them.
-const BROAD: [Kind; 3] = [Kind::Overcast, Kind::Studio, Kind::Indoor];
+const BROAD: [LightKind; 3] = [LightKind::Overcast, LightKind::Studio, LightKind::Indoor];
 const BROAD_SEED: u64 = 1;
 
 /// Measured images to compare candidates with.
