@@ -208,7 +208,7 @@ fn materials(names: &[String]) -> Vec<Material> {
 /// The built-in sky with its sun (the texels above [`SUN_TEXEL`]) ten times brighter: a
 /// hard sun, most of the energy in a few texels.
 fn hard_sun((h, w): (usize, usize)) -> (EnvMap, String) {
-    let mut env = matedit::defaults::procedural_env(h, w, matedit::Convention::Equirect);
+    let mut env = matedit::builtin_sky::procedural_env(h, w, matedit::Convention::Equirect);
     for t in &mut env.texels {
         if t.iter().any(|&v| v > SUN_TEXEL) {
             *t = t.map(|v| v * 10.0);

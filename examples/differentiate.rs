@@ -9,14 +9,14 @@
 //! material; its gradient dLoss/dImage = 2 (image - target) is what `backward` takes.
 
 use matedit::{
-    Batch, Camera, Convention, Device, Image, Material, NormalMap, Renderer, Scene, defaults,
+    Batch, Camera, Convention, Device, Image, Material, NormalMap, Renderer, Scene, builtin_sky,
     presets,
 };
 
 fn scene(material: Material) -> Scene {
     Scene {
         normals: NormalMap::sphere(64),
-        env: defaults::procedural_env(16, 32, Convention::default()),
+        env: builtin_sky::procedural_env(16, 32, Convention::default()),
         material,
         camera: Camera::Orthographic,
     }

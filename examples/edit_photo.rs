@@ -15,7 +15,7 @@ use matedit::io::{self, Preview};
 use matedit::nets::Nets;
 use matedit::shapes::{self, Rotation, Shape, View};
 use matedit::{Accuracy, Batch, Camera, Convention, Device, Image, Renderer, Scene};
-use matedit::{defaults, presets};
+use matedit::{builtin_sky, presets};
 
 /// A stand-in photo: a turned torus of red plastic under the built-in sky, on grey.
 fn rendered_photo(renderer: &Renderer) -> matedit::Result<Image> {
@@ -35,7 +35,7 @@ fn rendered_photo(renderer: &Renderer) -> matedit::Result<Image> {
     let (normals, mask) = shapes::render_normals(&torus.mesh(0), &view)?;
     let scene = Scene {
         normals,
-        env: defaults::procedural_env(32, 64, Convention::default()),
+        env: builtin_sky::procedural_env(32, 64, Convention::default()),
         material: presets::lookup(presets::DEFAULT).expect("a shipped preset"),
         camera: Camera::Orthographic,
     };

@@ -9,11 +9,13 @@
 //! (`edit::Light::Fit`).
 
 use matedit::edit::{self, Inputs, Light, Options};
-use matedit::{Batch, Camera, Convention, Device, NormalMap, Renderer, Scene, defaults, presets};
+use matedit::{
+    Batch, Camera, Convention, Device, NormalMap, Renderer, Scene, builtin_sky, presets,
+};
 
 fn main() -> matedit::Result<()> {
     let renderer = Renderer::new(Device::Auto)?;
-    let env = defaults::procedural_env(16, 32, Convention::default());
+    let env = builtin_sky::procedural_env(16, 32, Convention::default());
     let normals = NormalMap::sphere(64);
 
     // the image to fit: what a photo of the sphere would be, rendered here

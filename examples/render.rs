@@ -10,7 +10,9 @@
 use std::path::PathBuf;
 
 use matedit::io::{self, Preview};
-use matedit::{Batch, Camera, Convention, Device, NormalMap, Renderer, Scene, defaults, presets};
+use matedit::{
+    Batch, Camera, Convention, Device, NormalMap, Renderer, Scene, builtin_sky, presets,
+};
 
 fn main() -> matedit::Result<()> {
     let mut args = std::env::args().skip(1);
@@ -24,7 +26,7 @@ fn main() -> matedit::Result<()> {
         // a 256 x 256 orthographic view of the unit sphere (pixels off it are background)
         normals: NormalMap::sphere(256),
         // the procedural sky with its sun, as a 64 x 128 lat-long map
-        env: defaults::procedural_env(64, 128, Convention::default()),
+        env: builtin_sky::procedural_env(64, 128, Convention::default()),
         material,
         camera: Camera::Orthographic,
     };

@@ -40,7 +40,7 @@
 //! - beneath them: [`backend`] (the [`Backend`] trait) and [`prepare`] (prepared scenes);
 //! - on images: [`raster`] (bilinear lookups, box filters, crops, blurs);
 //! - scene types: [`scene`], [`normals`], [`material`], [`envmap`], [`camera`];
-//!   built-in inputs: [`presets`], [`defaults`]; procedural lights: [`envgen`];
+//!   built-in inputs: [`presets`], [`builtin_sky`]; procedural lights: [`envgen`];
 //! - at the bottom: [`error`], [`spline`], [`splitmix`].
 
 #![allow(
@@ -50,9 +50,9 @@
 
 pub mod backend;
 pub mod brdf;
+pub mod builtin_sky;
 pub mod camera;
 pub mod cpu;
-pub mod defaults;
 pub mod edit;
 pub mod envgen;
 pub mod envmap;

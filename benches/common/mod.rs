@@ -168,7 +168,7 @@ pub fn envmap_files() -> Vec<PathBuf> {
 /// description.
 pub fn builtin_sky((h, w): (usize, usize)) -> (EnvMap, String) {
     (
-        matedit::defaults::procedural_env(h, w, Convention::Equirect),
+        matedit::builtin_sky::procedural_env(h, w, Convention::Equirect),
         format!("built-in procedural sky, {h}x{w}"),
     )
 }

@@ -116,7 +116,7 @@ pub(crate) fn sky<'py>(
             "sky: size {height}x{width} is outside 1..=4096 x 1..=8192"
         )));
     }
-    let env = matedit::defaults::procedural_env(height, width, convert::convention(convention)?);
+    let env = matedit::builtin_sky::procedural_env(height, width, convert::convention(convention)?);
     stack(py, false, height, width, vec![&env.texels[..]])
 }
 

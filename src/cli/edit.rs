@@ -245,7 +245,7 @@ fn encode_outputs(
         ),
     };
     let crop_mask: Vec<bool> = d.normals.normals.iter().map(|n| n != &[0.0; 3]).collect();
-    let sky = matedit::defaults::procedural_env(32, 64, Convention::Equirect);
+    let sky = matedit::builtin_sky::procedural_env(32, 64, Convention::Equirect);
     let sphere_normals = NormalMap::sphere(128);
     let renderer = Renderer::new(Device::Cpu)?;
     let sphere = renderer

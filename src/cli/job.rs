@@ -2,7 +2,7 @@
 //! scenes, the defaults that fill the gaps, and loading every input with checks.
 //!
 //! Defaults: a sphere of [`DEFAULT_SPHERE`] pixels, the procedural environment of
-//! [`matedit::defaults::procedural_env`], the preset [`matedit::presets::DEFAULT`], an
+//! [`matedit::builtin_sky::procedural_env`], the preset [`matedit::presets::DEFAULT`], an
 //! orthographic camera, env size 64x128 and the `equirect` convention.
 
 use std::collections::HashMap;
@@ -273,7 +273,7 @@ impl Plan {
             }
             let (h, w) = (scene.env.height, scene.env.width);
             let detail = match &spec.env {
-                None => Some(matedit::defaults::procedural_env(
+                None => Some(matedit::builtin_sky::procedural_env(
                     h * factor,
                     w * factor,
                     s.convention,
@@ -305,7 +305,7 @@ fn load_env_sized(path: Option<&Path>, s: Settings, notes: &mut Vec<String>) -> 
                 EnvSize::Full => DEFAULT_ENV_SIZE,
                 EnvSize::Size { height, width } => (height, width),
             };
-            Ok(matedit::defaults::procedural_env(
+            Ok(matedit::builtin_sky::procedural_env(
                 height,
                 width,
                 s.convention,

@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use matedit::{defaults, io, supersample};
+use matedit::{builtin_sky, io, supersample};
 
 use super::shared::{
     Failure, PreviewArgs, SceneArgs, check_method, light_details, print_timings, renderer, report,
@@ -48,7 +48,7 @@ pub fn run(args: &Args) -> Result<(), Failure> {
     // the built-in sky is a picture to look at: its default is the continuous light
     let builtin = args.scene.env.is_none() && args.scene.batch.is_none();
     let light = args.scene.light(if builtin {
-        supersample::Light::Level(defaults::LIGHT_LEVEL)
+        supersample::Light::Level(builtin_sky::LIGHT_LEVEL)
     } else {
         supersample::Light::Discrete
     });

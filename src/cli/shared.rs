@@ -189,7 +189,7 @@ pub fn light_details(
 ) -> Result<Vec<Option<matedit::EnvMap>>, Failure> {
     match light {
         supersample::Light::Discrete | supersample::Light::Level(0) => Ok(Vec::new()),
-        _ => Ok(plan.details(batch, matedit::defaults::LIGHT_DETAIL)?),
+        _ => Ok(plan.details(batch, matedit::builtin_sky::LIGHT_DETAIL)?),
     }
 }
 

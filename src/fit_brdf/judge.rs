@@ -2,7 +2,7 @@
 //! rendered with the measured BRDF (brute force, [`crate::brdf::render`]) and with each
 //! candidate material (the f64 reference layer), compared by RMSE over the image's peak.
 //!
-//! The lights are the built-in procedural sky ([`crate::defaults::procedural_env`]) with
+//! The lights are the built-in procedural sky ([`crate::builtin_sky::procedural_env`]) with
 //! its sun turned to four azimuths (front-left, right, behind, left), so that highlights
 //! land at the centre, across and at the rim of the sphere, and (with [`Judge::broad`])
 //! three broad procedural lights of [`crate::envgen`] (an overcast sky, a studio's area
@@ -12,8 +12,8 @@
 
 use crate::brdf::Isotropic;
 use crate::brdf::render::render_measured;
+use crate::builtin_sky::procedural_env;
 use crate::camera::Camera;
-use crate::defaults::procedural_env;
 use crate::envgen::LightKind;
 use crate::envmap::{Convention, EnvMap};
 use crate::error::Result;

@@ -241,7 +241,7 @@ pub fn edit_png(renderer: &Renderer, a: &Analysed, req: &EditRequest) -> Result<
 pub fn sphere_png(renderer: &Renderer, material: &Material) -> Result<Vec<u8>> {
     let batch = Batch::single(Scene {
         normals: NormalMap::sphere(SPHERE_SIDE),
-        env: crate::defaults::procedural_env(32, 64, Convention::Equirect),
+        env: crate::builtin_sky::procedural_env(32, 64, Convention::Equirect),
         material: material.clone(),
         camera: Camera::Orthographic,
     })?;

@@ -49,7 +49,7 @@ fn default_material() -> Material {
 }
 
 fn procedural(h: usize, w: usize) -> EnvMap {
-    matedit::defaults::procedural_env(h, w, Convention::Equirect)
+    matedit::builtin_sky::procedural_env(h, w, Convention::Equirect)
 }
 
 /// The scene that `SMALL` with no other option describes.

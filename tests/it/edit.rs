@@ -17,7 +17,7 @@ use matedit::{
 };
 
 fn sky(height: usize, width: usize) -> EnvMap {
-    matedit::defaults::procedural_env(height, width, Convention::Equirect)
+    matedit::builtin_sky::procedural_env(height, width, Convention::Equirect)
 }
 
 /// The map turned about the vertical by `columns`.

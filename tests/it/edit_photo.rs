@@ -29,7 +29,7 @@ fn photo(dir: &Path, name: &str, shape: &str, preset: &str, size: usize) -> (Pat
     let (normals, mask) = shapes::render_normals(&spec.mesh(0), &view).unwrap();
     let scene = Scene {
         normals,
-        env: matedit::defaults::procedural_env(16, 32, Convention::Equirect),
+        env: matedit::builtin_sky::procedural_env(16, 32, Convention::Equirect),
         material: matedit::presets::lookup(preset).unwrap(),
         camera: Camera::Orthographic,
     };

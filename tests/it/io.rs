@@ -478,7 +478,7 @@ fn manifest_validation() {
 fn procedural_env_is_valid_in_both_conventions() {
     for c in [Convention::Equirect, Convention::Paper] {
         for (h, w) in [(1, 1), (8, 16), (64, 128)] {
-            let e = matedit::defaults::procedural_env(h, w, c);
+            let e = matedit::builtin_sky::procedural_env(h, w, c);
             assert_eq!((e.height, e.width, e.convention), (h, w, c));
             e.validate().unwrap();
         }

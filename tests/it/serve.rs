@@ -35,7 +35,7 @@ fn photo(w: usize, h: usize, material: &str, alpha: bool) -> (Image, Vec<u8>) {
         .render(
             &Batch::single(Scene {
                 normals: NormalMap::sphere(side),
-                env: matedit::defaults::procedural_env(16, 32, Convention::Equirect),
+                env: matedit::builtin_sky::procedural_env(16, 32, Convention::Equirect),
                 material: matedit::presets::lookup(material).unwrap(),
                 camera: Camera::Orthographic,
             })

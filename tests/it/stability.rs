@@ -143,7 +143,7 @@ fn the_kink_of_the_cosine_takes_the_lit_side() {
 /// sun, or stays exact) and stays within 1%.
 #[test]
 fn env_levels_fail_under_a_hard_sun_and_the_choice_avoids_them() {
-    let mut env = matedit::defaults::procedural_env(64, 128, Convention::Equirect);
+    let mut env = matedit::builtin_sky::procedural_env(64, 128, Convention::Equirect);
     env.texels
         .iter_mut()
         .for_each(|t| *t = t.map(|v| v.min(2.0)));

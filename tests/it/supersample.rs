@@ -8,7 +8,7 @@ use crate::common;
 use matedit::supersample::{self, Light};
 use matedit::{
     Accuracy, Batch, Camera, Convention, Device, EnvMap, Image, NormalMap, Renderer, Scene, Wanted,
-    defaults, presets,
+    builtin_sky, presets,
 };
 
 fn scene(preset: &str, env: EnvMap) -> Batch {
@@ -22,7 +22,7 @@ fn scene(preset: &str, env: EnvMap) -> Batch {
 }
 
 fn sky() -> EnvMap {
-    defaults::procedural_env(16, 32, Convention::Equirect)
+    builtin_sky::procedural_env(16, 32, Convention::Equirect)
 }
 
 /// Each texel as s x s texels of its radiance: the layer on it is the area light's sum.
@@ -188,7 +188,7 @@ fn with_a_finer_map_the_continuous_light_approaches_it() {
     // constant radiance per texel cannot; at a level that splits every texel near a
     // peak into the finer map's own texels it is that layer
     let r = Renderer::new(Device::Cpu).unwrap();
-    let fine = defaults::procedural_env(64, 128, Convention::Equirect);
+    let fine = builtin_sky::procedural_env(64, 128, Convention::Equirect);
     let b = scene("chrome-ish", sky());
     let truth = r
         .render(&scene("chrome-ish", fine.clone()))
@@ -210,7 +210,11 @@ fn with_a_finer_map_the_continuous_light_approaches_it() {
     );
     assert!(e4 <= e1, "level 4 {e4} vs level 1 {e1}");
     // a detail map that does not refine the scene's: one error
-    let bad = [Some(defaults::procedural_env(48, 96, Convention::Equirect))];
+    let bad = [Some(builtin_sky::procedural_env(
+        48,
+        96,
+        Convention::Equirect,
+    ))];
     let e = supersample::render(&r, &b, &Accuracy::Exact, Light::Level(2), &bad).unwrap_err();
     assert!(e.to_string().contains("does not refine"), "{e}");
 }
@@ -220,7 +224,11 @@ fn gradients_with_a_detail_map_are_the_adjoint() {
     // the layer is linear in L: <dLoss/dL, L> is the loss itself, with the detail too
     let r = Renderer::new(Device::Cpu).unwrap();
     let b = scene("red-specular-plastic", sky());
-    let detail = [Some(defaults::procedural_env(32, 64, Convention::Equirect))];
+    let detail = [Some(builtin_sky::procedural_env(
+        32,
+        64,
+        Convention::Equirect,
+    ))];
     let light = Light::Level(2);
     let image = supersample::render(&r, &b, &Accuracy::Exact, light, &detail)
         .unwrap()
@@ -257,8 +265,8 @@ fn a_chosen_level_is_within_its_tolerance_of_the_finest_on_every_pixel() {
     // samples can miss; the choice also samples the pixels whose peak is on the brightest
     // texels, and measures each level against the finest
     let r = Renderer::new(Device::Cpu).unwrap();
-    let coarse = defaults::procedural_env(64, 128, Convention::Equirect);
-    let detail = [Some(defaults::procedural_env(
+    let coarse = builtin_sky::procedural_env(64, 128, Convention::Equirect);
+    let detail = [Some(builtin_sky::procedural_env(
         256,
         512,
         Convention::Equirect,

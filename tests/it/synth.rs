@@ -30,7 +30,7 @@ fn s(p: &Path) -> &str {
 
 /// The procedural sky, `h` x `w`, as an EXR file.
 fn write_sky(path: &Path, h: usize, w: usize) {
-    let env = matedit::defaults::procedural_env(h, w, Convention::Equirect);
+    let env = matedit::builtin_sky::procedural_env(h, w, Convention::Equirect);
     let bytes = io::exr::encode_rgb(w, h, &env.texels).expect("encode");
     std::fs::write(path, bytes).expect("write sky");
 }

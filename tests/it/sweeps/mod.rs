@@ -28,7 +28,7 @@ fn lobe(m0: f64, m1: f64) -> Result<Material, String> {
 }
 
 fn sky(h: usize, w: usize, convention: Convention) -> EnvMap {
-    matedit::defaults::procedural_env(h, w, convention)
+    matedit::builtin_sky::procedural_env(h, w, convention)
 }
 
 fn scene(

@@ -10,7 +10,7 @@ use std::time::Instant;
 
 use matedit::prepare::Prepared;
 use matedit::supersample::Corrections;
-use matedit::{Backend, Camera, Convention, NormalMap, Scene, defaults};
+use matedit::{Backend, Camera, Convention, NormalMap, Scene, builtin_sky};
 
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
@@ -38,11 +38,11 @@ fn main() -> matedit::Result<()> {
     }
     let sizes: Vec<usize> = args.iter().filter_map(|a| a.parse().ok()).collect();
     let sizes = if sizes.is_empty() { vec![256] } else { sizes };
-    let env = defaults::procedural_env(64, 128, Convention::Equirect);
-    let f = defaults::LIGHT_DETAIL;
+    let env = builtin_sky::procedural_env(64, 128, Convention::Equirect);
+    let f = builtin_sky::LIGHT_DETAIL;
     let mut detail = None;
     let sky = time(&mut || {
-        detail = Some(defaults::procedural_env(
+        detail = Some(builtin_sky::procedural_env(
             64 * f,
             128 * f,
             Convention::Equirect,
@@ -76,7 +76,7 @@ fn main() -> matedit::Result<()> {
                     &prep,
                     &env,
                     Some(&detail),
-                    defaults::LIGHT_LEVEL,
+                    builtin_sky::LIGHT_LEVEL,
                 ));
                 Ok(())
             })?;

@@ -89,7 +89,7 @@ fn main() -> Result<(), String> {
     }
     let scene = Scene {
         normals: normals(&scene_name).ok_or(format!("unknown scene '{scene_name}'"))?,
-        env: matedit::defaults::procedural_env(hl, wl, Convention::Equirect),
+        env: matedit::builtin_sky::procedural_env(hl, wl, Convention::Equirect),
         material: material(&mat_name).ok_or(format!("unknown material '{mat_name}'"))?,
         camera: Camera::Orthographic,
     };

@@ -19,7 +19,7 @@ use matedit::io::resample::downsample;
 use matedit::supersample::{self, Light};
 use matedit::{
     Accuracy, Batch, Camera, Convention, Device, EnvMap, Image, NormalMap, Renderer, Scene,
-    defaults, io, lod, presets,
+    builtin_sky, io, lod, presets,
 };
 use plotters::prelude::*;
 
@@ -55,7 +55,7 @@ fn run() -> Result<(), String> {
     eprintln!("device: {}", renderer.describe());
 
     // each light at 1x, 4x and 16x the texels
-    let sky = |h, w| defaults::procedural_env(h, w, Convention::Equirect);
+    let sky = |h, w| builtin_sky::procedural_env(h, w, Convention::Equirect);
     let mut lights = vec![(
         "sky".to_string(),
         [sky(64, 128), sky(128, 256), sky(256, 512)],
@@ -311,19 +311,19 @@ fn bounds(v: impl Iterator<Item = f64>) -> (f64, f64) {
 fn default_crop(renderer: &Renderer, path: &Path) -> Result<(), String> {
     let batch = Batch::single(Scene {
         normals: NormalMap::sphere(256),
-        env: defaults::procedural_env(64, 128, Convention::Equirect),
+        env: builtin_sky::procedural_env(64, 128, Convention::Equirect),
         material: presets::lookup(presets::DEFAULT).ok_or("default preset")?,
         camera: Camera::Orthographic,
     })
     .map_err(|e| e.to_string())?;
     let mut crops = Vec::new();
-    let f = defaults::LIGHT_DETAIL;
-    let detail = [Some(defaults::procedural_env(
+    let f = builtin_sky::LIGHT_DETAIL;
+    let detail = [Some(builtin_sky::procedural_env(
         64 * f,
         128 * f,
         Convention::Equirect,
     ))];
-    for light in [Light::Discrete, Light::Level(defaults::LIGHT_LEVEL)] {
+    for light in [Light::Discrete, Light::Level(builtin_sky::LIGHT_LEVEL)] {
         let start = Instant::now();
         let (mut images, _) =
             supersample::render(renderer, &batch, &Accuracy::Exact, light, &detail)

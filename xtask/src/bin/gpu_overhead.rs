@@ -55,7 +55,7 @@ fn main() -> matedit::Result<()> {
     for n in sizes {
         let scene = Scene {
             normals: NormalMap::sphere(n),
-            env: matedit::defaults::procedural_env(hl, wl, Convention::Equirect),
+            env: matedit::builtin_sky::procedural_env(hl, wl, Convention::Equirect),
             material: material(),
             camera: Camera::Orthographic,
         };

@@ -16,7 +16,7 @@ fn main() -> matedit::Result<()> {
         .unwrap_or(128);
     let scene = Scene {
         normals: NormalMap::sphere(n),
-        env: matedit::defaults::procedural_env(64, 128, Convention::Equirect),
+        env: matedit::builtin_sky::procedural_env(64, 128, Convention::Equirect),
         material: matedit::presets::lookup("plastic-red").expect("a preset"),
         camera: Camera::Orthographic,
     };

@@ -163,7 +163,7 @@ fn sun_to_sky_table() -> Result<(), String> {
 /// luminance times its solid angle and cosine over the sky's horizontal illuminance (a
 /// midpoint quadrature).
 fn builtin_sun_to_sky() {
-    use matedit::defaults::{SUN_DIR, SUN_RADIANCE, SUN_RADIUS, sky_radiance};
+    use matedit::builtin_sky::{SUN_DIR, SUN_RADIANCE, SUN_RADIUS, sky_radiance};
     use matedit::envgen::colour::luminance;
     use std::f64::consts::PI;
     let omega = 2.0 * PI * (1.0 - SUN_RADIUS.cos());

@@ -18,7 +18,7 @@ use std::path::Path;
 
 use matedit::cpu::FastCpu;
 use matedit::lod::{self, Chooser, Method};
-use matedit::{Camera, Convention, EnvMap, Image, NormalMap, Scene, defaults, io};
+use matedit::{Camera, Convention, EnvMap, Image, NormalMap, Scene, builtin_sky, io};
 
 fn arg(args: &[String], name: &str, default: &str) -> String {
     args.iter()
@@ -30,7 +30,7 @@ fn arg(args: &[String], name: &str, default: &str) -> String {
 
 fn env(name: &str) -> Result<EnvMap, String> {
     if name == "sky" {
-        return Ok(defaults::procedural_env(64, 128, Convention::Equirect));
+        return Ok(builtin_sky::procedural_env(64, 128, Convention::Equirect));
     }
     let path =
         Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../shared/data/envmaps/{name}.exr"));
