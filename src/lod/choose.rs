@@ -418,8 +418,9 @@ impl<'a> Trial<'a> {
             let grads = match &upstream {
                 Some(u) if grads => {
                     let jac = backend
-                        .normal_jacobians(std::slice::from_ref(&sample))?
-                        .remove(0);
+                        .normal_jacobians(std::slice::from_ref(&sample), None)?
+                        .remove(0)
+                        .0;
                     let mut g = Gradients::zeros(0, sample.pixels.len());
                     for (px, j) in sample.pixels.iter().zip(jac) {
                         let up = u.pixels[px.index];

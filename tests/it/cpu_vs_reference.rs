@@ -46,7 +46,10 @@ fn compare_tol(test: &str, batch: &Batch, image_tol: f64, grad_tol: f64) {
         let truth = Truth::new(&prep, up);
         for cpu in levels() {
             let what = format!("{test} scene {b} {}", cpu.level().name());
-            let (image, grads) = (cpu.forward(&prep), cpu.backward(&prep, up));
+            let (image, grads) = (
+                cpu.forward(&prep),
+                cpu.backward(&prep, up, matedit::Wanted::ALL),
+            );
             truth.check(&what, &image, &grads, image_tol, grad_tol);
         }
     }
@@ -248,7 +251,12 @@ fn deterministic_across_threads_and_runs() {
             .num_threads(threads)
             .build()
             .unwrap();
-        pool.install(|| (cpu.forward(&prep), cpu.backward(&prep, &up)))
+        pool.install(|| {
+            (
+                cpu.forward(&prep),
+                cpu.backward(&prep, &up, matedit::Wanted::ALL),
+            )
+        })
     };
     let (i1, g1) = run(1);
     let (i2, g2) = run(2);
@@ -329,9 +337,13 @@ fn normal_jacobians_match_the_reference_backward() {
         .for_each(|n| *n = n.map(|c| c * 0.9));
     cases.push(s);
     let preps: Vec<Prepared> = cases.iter().map(Prepared::new).collect();
-    let want = reference::Reference.normal_jacobians(&preps).unwrap();
+    let jacobians = |b: &dyn Backend| -> Vec<_> {
+        let got = b.normal_jacobians(&preps, None).unwrap();
+        got.into_iter().map(|(j, _)| j).collect()
+    };
+    let want = jacobians(&reference::Reference);
     for cpu in levels() {
-        let got = Backend::normal_jacobians(&cpu, &preps).unwrap();
+        let got = jacobians(&cpu);
         for (c, (g, w)) in got.iter().zip(&want).enumerate() {
             assert_eq!(g.len(), preps[c].pixels.len());
             let (g, w) = (flat_jacobians(g), flat_jacobians(w));
@@ -371,15 +383,24 @@ fn backward_with_jacobians_is_both_passes_in_one() {
                 .collect(),
         })
         .collect();
-    let want = reference::Reference.normal_jacobians(&preps).unwrap();
+    let want: Vec<_> = reference::Reference
+        .normal_jacobians(&preps, None)
+        .unwrap()
+        .into_iter()
+        .map(|(j, _)| j)
+        .collect();
     let sums = Wanted {
         normals: false,
         ..Wanted::ALL
     };
     for cpu in levels() {
         for wanted in [sums, Wanted::ALL] {
-            let both = Backend::backward_with_jacobians(&cpu, &preps, &ups, wanted).unwrap();
-            let alone = Backend::backward_prepared_wanted(&cpu, &preps, &ups, wanted).unwrap();
+            let both: Vec<_> = Backend::normal_jacobians(&cpu, &preps, Some((&ups, wanted)))
+                .unwrap()
+                .into_iter()
+                .map(|(j, g)| (g.expect("gradients"), j))
+                .collect();
+            let alone = Backend::backward(&cpu, (&preps).into(), &ups, wanted).unwrap();
             for (c, ((g, j), (a, w))) in both.iter().zip(alone.iter().zip(&want)).enumerate() {
                 let what = format!("case {c} {} {wanted:?}", cpu.level().name());
                 assert_eq!(g, a, "{what}: gradients");
@@ -443,7 +464,10 @@ fn materials_with_nothing_to_share_take_the_dense_kernels() {
             let want = flat32(&plan.forward(&prep));
             let tol = 1e-6 * max_abs(&want);
             assert_close(&what, &flat32(&cpu.forward(&prep)), &want, tol, 0.0);
-            let (got, want) = (cpu.backward(&prep, up), plan.backward(&prep, up));
+            let (got, want) = (
+                cpu.backward(&prep, up, matedit::Wanted::ALL),
+                plan.backward(&prep, up, matedit::Wanted::ALL),
+            );
             for (part, g, w) in [
                 ("dL", &got.d_env, &want.d_env),
                 ("dn", &got.d_normals, &want.d_normals),
