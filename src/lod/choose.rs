@@ -546,7 +546,7 @@ impl<'a> Trial<'a> {
                 return Ok(e);
             }
         }
-        let g = plan.backward_wanted(self.backend, sample_up, NORMALS)?;
+        let g = plan.backward(self.backend, sample_up, NORMALS)?;
         e.d_normals = Some(rel(&g.d_normals, &exact.d_normals));
         trace("  dn", t);
         if !sums_first && e.scaled(chooser) <= tol {
@@ -568,7 +568,7 @@ impl<'a> Trial<'a> {
                 let exact =
                     Plan::masked(self.backend, full, env, &Method::EXACT, &full.pixels, &mask)?;
                 trace("    truth plan", t);
-                let grads = exact.backward_wanted(self.backend, up, SUMS)?;
+                let grads = exact.backward(self.backend, up, SUMS)?;
                 trace("    truth backward", t);
                 self.texels.get_or_init(|| TexelTruth { mask, grads })
             }
@@ -577,7 +577,7 @@ impl<'a> Trial<'a> {
         let t = std::time::Instant::now();
         let plan = Plan::masked(self.backend, full, env, method, &full.pixels, mask)?;
         trace("    sums plan", t);
-        let g = plan.backward_wanted(self.backend, up, SUMS)?;
+        let g = plan.backward(self.backend, up, SUMS)?;
         trace("    sums backward", t);
         Ok((
             rel_masked(&g.d_env, &texels.grads.d_env, mask),

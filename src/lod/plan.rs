@@ -182,14 +182,9 @@ impl<'a> Plan<'a> {
     }
 
     /// The gradients for upstream dLoss/dImage `upstream`: the exact vector-Jacobian
-    /// product of the approximation.
-    pub fn backward(&self, backend: &dyn Backend, upstream: &Image) -> Result<Gradients> {
-        self.backward_wanted(backend, upstream, Wanted::ALL)
-    }
-
-    /// [`Plan::backward`] for the gradients `wanted` asks for; the others are zero (or
-    /// partial: they are for the caller to ignore).
-    pub fn backward_wanted(
+    /// product of the approximation, for the gradients `wanted` asks for; the others are
+    /// zero (or partial: they are for the caller to ignore).
+    pub fn backward(
         &self,
         backend: &dyn Backend,
         upstream: &Image,

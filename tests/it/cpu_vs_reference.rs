@@ -355,7 +355,7 @@ fn normal_jacobians_match_the_reference_backward() {
 }
 
 #[test]
-fn backward_with_jacobians_is_both_passes_in_one() {
+fn normal_jacobians_with_backward_is_both_passes_in_one() {
     // the Jacobian from the backward pass's own lobe terms, through the plan kernels (a
     // preset sharing its exponents) and the dense ones (nine lobes of their own): the
     // reference's Jacobian, and gradients bitwise those of the backward pass alone
