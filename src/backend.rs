@@ -30,11 +30,48 @@ impl PassTiming {
 /// dI^k/dn of one pixel, `[k][axis]`: a row of the normals' Jacobian per channel.
 pub type Jacobian = [[f32; 3]; 3];
 
+/// The scenes a backend runs: a batch as the user gives it, or scenes already prepared.
+///
+/// A batch lets a backend take its own fast path (the GPU reads the pixels from the normal
+/// maps and runs the whole batch in one submission; the fast CPU path prepares each scene on
+/// its own thread); prepared scenes are what the levels of detail in [`crate::lod`] and
+/// [`crate::supersample`] hand a backend (a downsampled map, a table's nodes as pixels).
+#[derive(Clone, Copy, Debug)]
+pub enum Scenes<'a> {
+    /// A batch's scenes, prepared by the backend as it runs them.
+    Batch(&'a Batch),
+    /// Prepared scenes, their pixels listed.
+    Prepared(&'a [Prepared]),
+}
+
+impl<'a> From<&'a Batch> for Scenes<'a> {
+    fn from(batch: &'a Batch) -> Self {
+        Scenes::Batch(batch)
+    }
+}
+
+impl<'a> From<&'a [Prepared]> for Scenes<'a> {
+    fn from(preps: &'a [Prepared]) -> Self {
+        Scenes::Prepared(preps)
+    }
+}
+
+impl<'a> From<&'a Vec<Prepared>> for Scenes<'a> {
+    fn from(preps: &'a Vec<Prepared>) -> Self {
+        Scenes::Prepared(preps)
+    }
+}
+
+impl<'a> From<&'a Prepared> for Scenes<'a> {
+    fn from(prep: &'a Prepared) -> Self {
+        Scenes::Prepared(std::slice::from_ref(prep))
+    }
+}
+
 /// A backend: something that runs the layer's forward and backward passes.
 ///
-/// A backend works on [`prepare::Prepared`] scenes: the levels of detail in [`crate::lod`] hand
-/// it reduced scenes (a downsampled map, a table's nodes as pixels), so every backend runs
-/// every approximation.
+/// Every backend runs both kinds of [`Scenes`]: the levels of detail in [`crate::lod`] hand
+/// it reduced scenes, so every backend runs every approximation.
 pub trait Backend: Send + Sync {
     /// A one-line description: which backend and adapter.
     fn describe(&self) -> String;
@@ -43,26 +80,29 @@ pub trait Backend: Send + Sync {
     fn last_timings(&self) -> Vec<PassTiming> {
         Vec::new()
     }
-    /// One image per prepared scene (`width` x `height`, 0 off its pixels).
-    fn render_prepared(&self, preps: &[Prepared]) -> Result<Vec<Image>>;
-    /// One set of gradients per prepared scene, for upstream dLoss/dImage `upstream` (one
-    /// `width` x `height` image per scene); dLoss/dL in its `env_height` x `env_width` grid.
-    fn backward_prepared(&self, preps: &[Prepared], upstream: &[Image]) -> Result<Vec<Gradients>>;
-    /// As [`Backend::backward_prepared`], for the gradients `wanted` asks for; the others
-    /// may be left out (the caller zeroes them). By default all three are computed.
-    fn backward_prepared_wanted(
+    /// One image per scene (`width` x `height`, 0 off its pixels).
+    fn render(&self, scenes: Scenes<'_>) -> Result<Vec<Image>>;
+    /// One set of gradients per scene, for upstream dLoss/dImage `upstream` (one `width` x
+    /// `height` image per scene; checked against a batch); dLoss/dL in its `env_height` x
+    /// `env_width` grid. Only the gradients `wanted` asks for need be computed: the others
+    /// may be left out (the caller zeroes them).
+    fn backward(
         &self,
-        preps: &[Prepared],
+        scenes: Scenes<'_>,
         upstream: &[Image],
         wanted: Wanted,
-    ) -> Result<Vec<Gradients>> {
-        let _ = wanted;
-        self.backward_prepared(preps, upstream)
-    }
+    ) -> Result<Vec<Gradients>>;
     /// dI^k/dn per pixel of each prepared scene (in `pixels` order), `[k][axis]`: what a
-    /// normal table interpolates for dLoss/dn. By default three backward passes, one per
-    /// channel, over the pixels.
-    fn normal_jacobians(&self, preps: &[Prepared]) -> Result<Vec<Vec<Jacobian>>> {
+    /// normal table interpolates for dLoss/dn. With `backward` (upstream and wanted), the
+    /// scenes' [`Backend::backward`] too, which a backend may compute in the same pass.
+    ///
+    /// By default three backward passes, one per channel, over the pixels, and the backward
+    /// call on its own.
+    fn normal_jacobians(
+        &self,
+        preps: &[Prepared],
+        backward: Option<(&[Image], Wanted)>,
+    ) -> Result<Vec<(Vec<Jacobian>, Option<Gradients>)>> {
         let mut copies = Vec::with_capacity(preps.len());
         let mut ups = Vec::with_capacity(preps.len());
         for p in preps {
@@ -84,63 +124,22 @@ pub trait Backend: Send + Sync {
                 pixels: up,
             });
         }
-        let grads = self.backward_prepared(&copies, &ups)?;
-        Ok(grads
-            .iter()
-            .zip(preps)
-            .map(|(g, p)| {
-                let n = p.pixels.len();
-                (0..n)
-                    .map(|i| std::array::from_fn(|k| g.d_normals[k * n + i]))
-                    .collect()
-            })
-            .collect())
-    }
-    /// [`Backend::backward_prepared_wanted`] and [`Backend::normal_jacobians`] of the
-    /// same scenes: what a normal table's nodes need for every gradient. By default the
-    /// two calls.
-    fn backward_with_jacobians(
-        &self,
-        preps: &[Prepared],
-        upstream: &[Image],
-        wanted: Wanted,
-    ) -> Result<Vec<(Gradients, Vec<Jacobian>)>> {
-        let grads = self.backward_prepared_wanted(preps, upstream, wanted)?;
-        let jacs = self.normal_jacobians(preps)?;
-        Ok(grads.into_iter().zip(jacs).collect())
-    }
-    /// One image per scene. By default scene by scene, so that one scene's preparation is
-    /// in memory at a time.
-    fn render(&self, batch: &Batch) -> Result<Vec<Image>> {
-        batch
-            .scenes()
-            .iter()
-            .map(|s| Ok(self.render_prepared(&[Prepared::new(s)])?.remove(0)))
-            .collect()
-    }
-    /// One set of gradients per scene, for upstream dLoss/dImage `upstream` (one image per
-    /// scene).
-    fn backward(&self, batch: &Batch, upstream: &[Image]) -> Result<Vec<Gradients>> {
-        self.backward_wanted(batch, upstream, Wanted::ALL)
-    }
-    /// As [`Backend::backward`], for the gradients `wanted` asks for (see
-    /// [`Backend::backward_prepared_wanted`]).
-    fn backward_wanted(
-        &self,
-        batch: &Batch,
-        upstream: &[Image],
-        wanted: Wanted,
-    ) -> Result<Vec<Gradients>> {
-        batch.check_upstream(upstream)?;
-        batch
-            .scenes()
-            .iter()
-            .zip(upstream)
-            .map(|(s, u)| {
-                Ok(self
-                    .backward_prepared_wanted(&[Prepared::new(s)], std::slice::from_ref(u), wanted)?
-                    .remove(0))
-            })
-            .collect()
+        let grads = match backward {
+            Some((upstream, wanted)) => {
+                Some(self.backward(Scenes::Prepared(preps), upstream, wanted)?)
+            }
+            None => None,
+        };
+        let channels = self.backward(Scenes::Prepared(&copies), &ups, Wanted::ALL)?;
+        let jacs = channels.iter().zip(preps).map(|(g, p)| {
+            let n = p.pixels.len();
+            (0..n)
+                .map(|i| std::array::from_fn(|k| g.d_normals[k * n + i]))
+                .collect()
+        });
+        Ok(match grads {
+            Some(grads) => jacs.zip(grads.into_iter().map(Some)).collect(),
+            None => jacs.map(|j| (j, None)).collect(),
+        })
     }
 }

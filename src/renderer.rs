@@ -113,7 +113,22 @@ impl Renderer {
         self.backend.as_ref()
     }
 
-    /// One image per scene, under `accuracy`; with a tolerance, each scene's choice too.
+    /// One image per scene of the batch.
+    ///
+    /// Valid inputs keep every value far inside f32 (see docs/CONVENTIONS.md), but an
+    /// output that still overflows is an error naming it, never a silent inf or NaN.
+    pub fn render(&self, batch: &Batch) -> Result<Vec<Image>> {
+        Ok(self.render_with(batch, &Accuracy::Exact)?.0)
+    }
+
+    /// dLoss/dL, dLoss/dn and dLoss/dctrl per scene, given dLoss/dImage per scene.
+    pub fn backward(&self, batch: &Batch, upstream: &[Image]) -> Result<Vec<Gradients>> {
+        Ok(self
+            .backward_with(batch, upstream, &Accuracy::Exact, Wanted::ALL)?
+            .0)
+    }
+
+    /// [`Renderer::render`] under `accuracy`; with a tolerance, each scene's choice too.
     pub fn render_with(
         &self,
         batch: &Batch,
@@ -121,7 +136,7 @@ impl Renderer {
     ) -> Result<(Vec<Image>, Vec<Option<lod::Choice>>)> {
         let (images, choices) = match accuracy {
             Accuracy::Exact => (
-                self.backend.render(batch)?,
+                self.backend.render(batch.into())?,
                 vec![None; batch.scenes().len()],
             ),
             _ => {
@@ -148,20 +163,11 @@ impl Renderer {
         Ok((images, choices))
     }
 
-    /// Gradients per scene under `accuracy`; with a tolerance, each scene's choice too.
+    /// [`Renderer::backward`] under `accuracy`, computing only the gradients `wanted` asks
+    /// for; the others are zeros. The exact layer skips their work (see [`Wanted`]); the
+    /// levels of detail compute all three and zero the others. With a tolerance, each
+    /// scene's choice too.
     pub fn backward_with(
-        &self,
-        batch: &Batch,
-        upstream: &[Image],
-        accuracy: &Accuracy,
-    ) -> Result<(Vec<Gradients>, Vec<Option<lod::Choice>>)> {
-        self.backward_wanted_with(batch, upstream, accuracy, Wanted::ALL)
-    }
-
-    /// As [`Renderer::backward_with`], computing only the gradients `wanted` asks for; the
-    /// others are zeros. The exact layer skips their work (see [`Wanted`]); the levels of
-    /// detail compute all three and zero the others.
-    pub fn backward_wanted_with(
         &self,
         batch: &Batch,
         upstream: &[Image],
@@ -180,7 +186,7 @@ impl Renderer {
                 vec![None; batch.scenes().len()],
             ),
             Accuracy::Exact => (
-                self.backend.backward_wanted(batch, upstream, wanted)?,
+                self.backend.backward(batch.into(), upstream, wanted)?,
                 vec![None; batch.scenes().len()],
             ),
             _ => {
@@ -206,26 +212,6 @@ impl Renderer {
         }
         check_gradients(batch, &grads)?;
         Ok((grads, choices))
-    }
-
-    /// One image per scene of the batch.
-    ///
-    /// Valid inputs keep every value far inside f32 (see docs/CONVENTIONS.md), but an
-    /// output that still overflows is an error naming it, never a silent inf or NaN.
-    pub fn render(&self, batch: &Batch) -> Result<Vec<Image>> {
-        let images = self.backend.render(batch)?;
-        for (b, img) in images.iter().enumerate() {
-            check_finite("image", b, img.width, &img.pixels)?;
-        }
-        Ok(images)
-    }
-
-    /// dLoss/dL, dLoss/dn and dLoss/dctrl per scene, given dLoss/dImage per scene.
-    pub fn backward(&self, batch: &Batch, upstream: &[Image]) -> Result<Vec<Gradients>> {
-        batch.check_upstream(upstream)?;
-        let grads = self.backend.backward(batch, upstream)?;
-        check_gradients(batch, &grads)?;
-        Ok(grads)
     }
 }
 

@@ -236,7 +236,7 @@ impl Renderer {
         let (grads, _) = self
             .timed(py, || {
                 self.inner
-                    .backward_wanted_with(&s.batch, &ups, &acc, wanted)
+                    .backward_with(&s.batch, &ups, &acc, wanted)
             })
             .map_err(py_err)?;
         let batched = s.batched || ub;

@@ -25,9 +25,10 @@ pub mod table;
 
 use rayon::prelude::*;
 
+use crate::backend::Scenes;
 use crate::error::{Error, Result};
 use crate::prepare::Prepared;
-use crate::scene::{Batch, Gradients, Image, Wanted};
+use crate::scene::{Gradients, Image, Wanted};
 use crate::{Backend, Jacobian};
 
 /// An instruction set the fast path can run on.
@@ -191,70 +192,59 @@ impl Backend for FastCpu {
     // A batch's scenes run in parallel as well as each scene's pixels: a small scene's
     // backward pass is one chunk (one thread), and a training batch is many small scenes.
     // Each scene's result does not depend on the threads.
-    fn render_prepared(&self, preps: &[Prepared]) -> Result<Vec<Image>> {
-        Ok(preps.par_iter().map(|p| p.image(self.forward(p))).collect())
+    fn render(&self, scenes: Scenes<'_>) -> Result<Vec<Image>> {
+        Ok(match scenes {
+            Scenes::Batch(batch) => batch
+                .scenes()
+                .par_iter()
+                .map(|s| {
+                    let p = Prepared::new(s);
+                    p.image(self.forward(&p))
+                })
+                .collect(),
+            Scenes::Prepared(preps) => preps.par_iter().map(|p| p.image(self.forward(p))).collect(),
+        })
     }
 
-    fn render(&self, batch: &Batch) -> Result<Vec<Image>> {
-        Ok(batch
-            .scenes()
-            .par_iter()
-            .map(|s| {
-                let p = Prepared::new(s);
-                p.image(self.forward(&p))
-            })
-            .collect())
-    }
-
-    fn backward_wanted(
+    fn backward(
         &self,
-        batch: &Batch,
+        scenes: Scenes<'_>,
         upstream: &[Image],
         wanted: Wanted,
     ) -> Result<Vec<Gradients>> {
-        batch.check_upstream(upstream)?;
-        Ok(batch
-            .scenes()
-            .par_iter()
-            .zip(upstream)
-            .map(|(s, u)| self.backward_wanted(&Prepared::new(s), &u.pixels, wanted))
-            .collect())
+        Ok(match scenes {
+            Scenes::Batch(batch) => {
+                batch.check_upstream(upstream)?;
+                batch
+                    .scenes()
+                    .par_iter()
+                    .zip(upstream)
+                    .map(|(s, u)| FastCpu::backward(self, &Prepared::new(s), &u.pixels, wanted))
+                    .collect()
+            }
+            Scenes::Prepared(preps) => preps
+                .par_iter()
+                .zip(upstream)
+                .map(|(p, u)| FastCpu::backward(self, p, &u.pixels, wanted))
+                .collect(),
+        })
     }
 
-    fn backward_prepared(&self, preps: &[Prepared], upstream: &[Image]) -> Result<Vec<Gradients>> {
-        self.backward_prepared_wanted(preps, upstream, Wanted::ALL)
-    }
-
-    fn backward_prepared_wanted(
+    fn normal_jacobians(
         &self,
         preps: &[Prepared],
-        upstream: &[Image],
-        wanted: Wanted,
-    ) -> Result<Vec<Gradients>> {
-        Ok(preps
-            .par_iter()
-            .zip(upstream)
-            .map(|(p, u)| FastCpu::backward_wanted(self, p, &u.pixels, wanted))
-            .collect())
-    }
-
-    fn normal_jacobians(&self, preps: &[Prepared]) -> Result<Vec<Vec<Jacobian>>> {
-        Ok(preps
-            .par_iter()
-            .map(|p| FastCpu::normal_jacobians(self, p))
-            .collect())
-    }
-
-    fn backward_with_jacobians(
-        &self,
-        preps: &[Prepared],
-        upstream: &[Image],
-        wanted: Wanted,
-    ) -> Result<Vec<(Gradients, Vec<Jacobian>)>> {
-        Ok(preps
-            .par_iter()
-            .zip(upstream)
-            .map(|(p, u)| FastCpu::backward_with_jacobians(self, p, &u.pixels, wanted))
-            .collect())
+        backward: Option<(&[Image], Wanted)>,
+    ) -> Result<Vec<(Vec<Jacobian>, Option<Gradients>)>> {
+        Ok(match backward {
+            None => preps
+                .par_iter()
+                .map(|p| FastCpu::normal_jacobians(self, p, None))
+                .collect(),
+            Some((upstream, wanted)) => preps
+                .par_iter()
+                .zip(upstream)
+                .map(|(p, u)| FastCpu::normal_jacobians(self, p, Some((&u.pixels, wanted))))
+                .collect(),
+        })
     }
 }

@@ -40,10 +40,29 @@ impl FastCpu {
     }
 
     /// dI^k/dn per pixel of `prep.pixels` (in that order), `[k][axis]`, in one pass that
-    /// costs little more than the forward one.
-    pub fn normal_jacobians(&self, prep: &Prepared) -> Vec<Jacobian> {
-        let (_, jac) = self.forward_sums(prep, true);
-        jac.iter().map(jacobian_f32).collect()
+    /// costs little more than the forward one. With `backward` (upstream `g`, row-major,
+    /// and the gradients wanted), [`FastCpu::backward`] too: the Jacobian then comes from
+    /// the backward pass's own lobe terms (orthographic cameras; a perspective one gets
+    /// its own pass).
+    pub fn normal_jacobians(
+        &self,
+        prep: &Prepared,
+        backward: Option<(&[[f32; 3]], Wanted)>,
+    ) -> (Vec<Jacobian>, Option<Gradients>) {
+        match backward {
+            None => {
+                let (_, jac) = self.forward_sums(prep, true);
+                (jac.iter().map(jacobian_f32).collect(), None)
+            }
+            Some((g, wanted)) if !prep.camera.is_orthographic() => {
+                let grads = self.backward(prep, g, wanted);
+                (self.normal_jacobians(prep, None).0, Some(grads))
+            }
+            Some((g, wanted)) => {
+                let (grads, jac) = self.backward_pass(prep, g, wanted, true);
+                (jac, Some(grads))
+            }
+        }
     }
 
     /// Per pixel of `prep.pixels`: the image's f64 sums, and with `jacobian` dI^k/dn's.
@@ -103,35 +122,13 @@ impl FastCpu {
         (sums, jac)
     }
 
-    /// The backward pass of a prepared scene for upstream `g` (row-major).
-    pub fn backward(&self, prep: &Prepared, g: &[[f32; 3]]) -> Gradients {
-        self.backward_wanted(prep, g, Wanted::ALL)
-    }
-
-    /// The backward pass for the gradients `wanted` asks for; the others are zeros.
-    /// Without dLoss/dL only the lit texels are visited (every other term is a multiple of
-    /// the radiance), without dLoss/dctrl only the lobes with a scale (the others add
-    /// nothing to the image), and the terms of what is not wanted are left out.
-    pub fn backward_wanted(&self, prep: &Prepared, g: &[[f32; 3]], wanted: Wanted) -> Gradients {
+    /// The backward pass of a prepared scene for upstream `g` (row-major), for the
+    /// gradients `wanted` asks for; the others are zeros. Without dLoss/dL only the lit
+    /// texels are visited (every other term is a multiple of the radiance), without
+    /// dLoss/dctrl only the lobes with a scale (the others add nothing to the image), and
+    /// the terms of what is not wanted are left out.
+    pub fn backward(&self, prep: &Prepared, g: &[[f32; 3]], wanted: Wanted) -> Gradients {
         self.backward_pass(prep, g, wanted, false).0
-    }
-
-    /// [`FastCpu::backward_wanted`] and [`FastCpu::normal_jacobians`] at once: the
-    /// Jacobian from the backward pass's own lobe terms (orthographic cameras; a
-    /// perspective one gets its own pass).
-    pub fn backward_with_jacobians(
-        &self,
-        prep: &Prepared,
-        g: &[[f32; 3]],
-        wanted: Wanted,
-    ) -> (Gradients, Vec<Jacobian>) {
-        if !prep.camera.is_orthographic() {
-            return (
-                self.backward_wanted(prep, g, wanted),
-                self.normal_jacobians(prep),
-            );
-        }
-        self.backward_pass(prep, g, wanted, true)
     }
 
     /// The backward pass, with the Jacobian per pixel of `prep.pixels` if `jacobian`

@@ -171,8 +171,7 @@ pub fn fit(
             normals: false,
             ctrl: true,
         };
-        let (mut grads, _) =
-            renderer.backward_wanted_with(&batch, &[up], &Accuracy::Exact, wanted)?;
+        let (mut grads, _) = renderer.backward_with(&batch, &[up], &Accuracy::Exact, wanted)?;
         let grads = grads.remove(0);
         let mut g = vec![0.0; u.len()];
         for i in 0..n_mat {

@@ -25,6 +25,7 @@ pub use pipelines::{Pass, Tiles};
 pub use plan::{Dispatch, Planner, Shape};
 
 use crate::Backend;
+use crate::backend::Scenes;
 use crate::error::{Error, Result};
 use crate::prepare::Prepared;
 use crate::scene::{Batch, Gradients, Image, Wanted};
@@ -229,43 +230,34 @@ impl Backend for GpuRenderer {
         GpuRenderer::last_timings(self)
     }
 
-    fn render_prepared(&self, preps: &[Prepared]) -> Result<Vec<Image>> {
-        let inputs = listed(preps);
+    // a batch: the whole batch in one submission, the pixels read from the normal maps
+    fn render(&self, scenes: Scenes<'_>) -> Result<Vec<Image>> {
+        let lights;
+        let inputs = match scenes {
+            Scenes::Batch(batch) => {
+                lights = lights_of(batch);
+                mapped(batch, &lights)
+            }
+            Scenes::Prepared(preps) => listed(preps),
+        };
         self.scoped("forward", || forward::forward(self, &inputs))
     }
 
-    fn backward_prepared(&self, preps: &[Prepared], upstream: &[Image]) -> Result<Vec<Gradients>> {
-        self.backward_prepared_wanted(preps, upstream, Wanted::ALL)
-    }
-
-    fn backward_prepared_wanted(
+    fn backward(
         &self,
-        preps: &[Prepared],
+        scenes: Scenes<'_>,
         upstream: &[Image],
         wanted: Wanted,
     ) -> Result<Vec<Gradients>> {
-        let inputs = listed(preps);
-        self.scoped("backward", || {
-            backward::backward(self, &inputs, upstream, wanted)
-        })
-    }
-
-    // the whole batch in one submission, the pixels read from the normal maps
-    fn render(&self, batch: &Batch) -> Result<Vec<Image>> {
-        let preps = lights_of(batch);
-        let inputs = mapped(batch, &preps);
-        self.scoped("forward", || forward::forward(self, &inputs))
-    }
-
-    fn backward_wanted(
-        &self,
-        batch: &Batch,
-        upstream: &[Image],
-        wanted: Wanted,
-    ) -> Result<Vec<Gradients>> {
-        batch.check_upstream(upstream)?;
-        let preps = lights_of(batch);
-        let inputs = mapped(batch, &preps);
+        let lights;
+        let inputs = match scenes {
+            Scenes::Batch(batch) => {
+                batch.check_upstream(upstream)?;
+                lights = lights_of(batch);
+                mapped(batch, &lights)
+            }
+            Scenes::Prepared(preps) => listed(preps),
+        };
         self.scoped("backward", || {
             backward::backward(self, &inputs, upstream, wanted)
         })

@@ -130,7 +130,7 @@ impl Groups {
         if let Some(k) = kept {
             scenes.push(k.with_pixels(n, 1, reps));
         }
-        let images = backend.render_prepared(&scenes)?;
+        let images = backend.render((&scenes).into())?;
         let mut largest: f64 = 0.0;
         for i in 0..n {
             for c in 0..3 {

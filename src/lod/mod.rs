@@ -33,7 +33,7 @@ pub use choose::{Choice, Chooser, ESTIMATE_BUDGET, Estimate, SAFETY, SAFETY_SUMS
 use crate::Backend;
 use crate::error::{Error, Result};
 use crate::prepare::Prepared;
-use crate::scene::{Gradients, Image, Scene};
+use crate::scene::{Gradients, Image, Scene, Wanted};
 
 /// Largest block side of an environment level.
 pub const MAX_ENV_FACTOR: usize = 64;
@@ -216,7 +216,11 @@ pub fn backward(
         )));
     }
     let prep = Prepared::new(scene);
-    Plan::new(backend, &prep, &scene.env, method, &prep.pixels)?.backward(backend, upstream)
+    Plan::new(backend, &prep, &scene.env, method, &prep.pixels)?.backward(
+        backend,
+        upstream,
+        Wanted::ALL,
+    )
 }
 
 /// The image of `scene` by the cheapest method whose estimated error is within `tol`, and
@@ -259,7 +263,7 @@ impl Chooser {
     ) -> Result<(Gradients, Choice)> {
         let prep = Prepared::new(scene);
         let (choice, plan) = choose::choose_plan(self, backend, &prep, scene, tol, Some(upstream))?;
-        Ok((plan.backward(backend, upstream)?, choice))
+        Ok((plan.backward(backend, upstream, Wanted::ALL)?, choice))
     }
 }
 

@@ -161,11 +161,9 @@ impl<'a> Plan<'a> {
     /// The image.
     pub fn forward(&self, backend: &dyn Backend) -> Result<Image> {
         let Some(p) = &self.parts else {
-            return Ok(backend
-                .render_prepared(std::slice::from_ref(self.prep))?
-                .remove(0));
+            return Ok(backend.render(self.prep.into())?.remove(0));
         };
-        let images = backend.render_prepared(&p.scenes)?;
+        let images = backend.render((&p.scenes).into())?;
         let mut image = Image::zeros(self.prep.width, self.prep.height);
         for &b in &p.blocks {
             add(&mut image.pixels, &images[b].pixels);
@@ -184,14 +182,9 @@ impl<'a> Plan<'a> {
     }
 
     /// The gradients for upstream dLoss/dImage `upstream`: the exact vector-Jacobian
-    /// product of the approximation.
-    pub fn backward(&self, backend: &dyn Backend, upstream: &Image) -> Result<Gradients> {
-        self.backward_wanted(backend, upstream, Wanted::ALL)
-    }
-
-    /// [`Plan::backward`] for the gradients `wanted` asks for; the others are zero (or
-    /// partial: they are for the caller to ignore).
-    pub fn backward_wanted(
+    /// product of the approximation, for the gradients `wanted` asks for; the others are
+    /// zero (or partial: they are for the caller to ignore).
+    pub fn backward(
         &self,
         backend: &dyn Backend,
         upstream: &Image,
@@ -199,11 +192,7 @@ impl<'a> Plan<'a> {
     ) -> Result<Gradients> {
         let Some(p) = &self.parts else {
             return Ok(backend
-                .backward_prepared_wanted(
-                    std::slice::from_ref(self.prep),
-                    std::slice::from_ref(upstream),
-                    wanted,
-                )?
+                .backward(self.prep.into(), std::slice::from_ref(upstream), wanted)?
                 .remove(0));
         };
         let node_up = p.table.as_ref().map(|(t, _)| Image {
@@ -236,15 +225,14 @@ impl<'a> Plan<'a> {
         if wanted.normals {
             for &n in nodes {
                 let scene = std::slice::from_ref(&p.scenes[n]);
-                if node_wants.any() {
-                    let (g, j) = backend
-                        .backward_with_jacobians(scene, std::slice::from_ref(&ups[n]), node_wants)?
-                        .remove(0);
+                let with = node_wants
+                    .any()
+                    .then(|| (std::slice::from_ref(&ups[n]), node_wants));
+                let (j, g) = backend.normal_jacobians(scene, with)?.remove(0);
+                if let Some(g) = g {
                     grads[n] = g;
-                    jacs.push(j);
-                } else {
-                    jacs.push(backend.normal_jacobians(scene)?.remove(0));
                 }
+                jacs.push(j);
             }
         }
         let mut d_blocks = vec![[0.0f32; 3]; p.lights.rows * p.lights.cols];
@@ -297,7 +285,7 @@ fn backward_each(
 ) -> Result<Vec<Gradients>> {
     match wants.first() {
         Some(&w) if w.any() && wants.iter().all(|&x| x == w) => {
-            backend.backward_prepared_wanted(scenes, ups, w)
+            backend.backward(scenes.into(), ups, w)
         }
         _ => scenes
             .iter()
@@ -306,11 +294,7 @@ fn backward_each(
             .map(|((s, u), &w)| {
                 if w.any() {
                     Ok(backend
-                        .backward_prepared_wanted(
-                            std::slice::from_ref(s),
-                            std::slice::from_ref(u),
-                            w,
-                        )?
+                        .backward(s.into(), std::slice::from_ref(u), w)?
                         .remove(0))
                 } else {
                     Ok(Gradients::zeros(

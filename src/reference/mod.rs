@@ -14,9 +14,10 @@ pub use backward_texel::backward_texel;
 pub use forward::forward;
 pub use reduce_ctrl::reduce_ctrl;
 
+use crate::backend::Scenes;
 use crate::material::N_PARAMS;
 use crate::prepare::Prepared;
-use crate::scene::{Gradients, Image};
+use crate::scene::{Gradients, Image, Wanted};
 use crate::{Backend, Result};
 
 /// The backward pass in f64.
@@ -61,23 +62,56 @@ impl Backend for Reference {
         )
     }
 
-    fn render_prepared(&self, preps: &[Prepared]) -> Result<Vec<Image>> {
-        Ok(preps.iter().map(|p| p.image(to_f32(&forward(p)))).collect())
+    // a batch scene by scene, so that one scene's preparation is in memory at a time;
+    // every gradient, whichever are wanted
+    fn render(&self, scenes: Scenes<'_>) -> Result<Vec<Image>> {
+        match scenes {
+            Scenes::Batch(batch) => batch
+                .scenes()
+                .iter()
+                .map(|s| Ok(render_one(&Prepared::new(s))))
+                .collect(),
+            Scenes::Prepared(preps) => Ok(preps.iter().map(render_one).collect()),
+        }
     }
 
-    fn backward_prepared(&self, preps: &[Prepared], upstream: &[Image]) -> Result<Vec<Gradients>> {
-        Ok(preps
-            .iter()
-            .zip(upstream)
-            .map(|(p, u)| {
-                let g: Vec<[f64; 3]> = u.pixels.iter().map(|v| v.map(f64::from)).collect();
-                let r = backward(p, &g);
-                Gradients {
-                    d_env: to_f32(&r.d_env),
-                    d_normals: to_f32(&r.d_normals),
-                    d_ctrl: r.d_ctrl.map(|x| x as f32),
-                }
-            })
-            .collect())
+    fn backward(
+        &self,
+        scenes: Scenes<'_>,
+        upstream: &[Image],
+        _wanted: Wanted,
+    ) -> Result<Vec<Gradients>> {
+        match scenes {
+            Scenes::Batch(batch) => {
+                batch.check_upstream(upstream)?;
+                Ok(batch
+                    .scenes()
+                    .iter()
+                    .zip(upstream)
+                    .map(|(s, u)| backward_one(&Prepared::new(s), u))
+                    .collect())
+            }
+            Scenes::Prepared(preps) => Ok(preps
+                .iter()
+                .zip(upstream)
+                .map(|(p, u)| backward_one(p, u))
+                .collect()),
+        }
+    }
+}
+
+/// The image of one prepared scene, in f32.
+fn render_one(prep: &Prepared) -> Image {
+    prep.image(to_f32(&forward(prep)))
+}
+
+/// The gradients of one prepared scene for upstream `up`, in f32.
+fn backward_one(prep: &Prepared, up: &Image) -> Gradients {
+    let g: Vec<[f64; 3]> = up.pixels.iter().map(|v| v.map(f64::from)).collect();
+    let r = backward(prep, &g);
+    Gradients {
+        d_env: to_f32(&r.d_env),
+        d_normals: to_f32(&r.d_normals),
+        d_ctrl: r.d_ctrl.map(|x| x as f32),
     }
 }

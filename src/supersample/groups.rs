@@ -12,7 +12,7 @@ use crate::Backend;
 use crate::envmap::{Convention, EnvMap};
 use crate::error::{Error, Result};
 use crate::prepare::{self, Light, PixelRec, Prepared};
-use crate::scene::{Gradients, Image};
+use crate::scene::{Gradients, Image, Wanted};
 
 /// Largest split of a texel per axis.
 pub const MAX_SPLIT: usize = 8;
@@ -344,7 +344,7 @@ impl Corrections {
         let images: Vec<Image> = self
             .scenes
             .par_chunks(CHUNK)
-            .map(|c| backend.render_prepared(c))
+            .map(|c| backend.render(c.into()))
             .collect::<Result<Vec<_>>>()?
             .into_iter()
             .flatten()
@@ -386,7 +386,7 @@ impl Corrections {
             .scenes
             .par_chunks(CHUNK)
             .zip(ups.par_chunks(CHUNK))
-            .map(|(c, u)| backend.backward_prepared(c, u))
+            .map(|(c, u)| backend.backward(c.into(), u, Wanted::ALL))
             .collect::<Result<Vec<_>>>()?
             .into_iter()
             .flatten()

@@ -154,9 +154,7 @@ pub fn choose(
         .collect();
     let sampled = pixels.len();
     let sample = prep.with_pixels(sampled, 1, pixels);
-    let base = backend
-        .render_prepared(std::slice::from_ref(&sample))?
-        .remove(0);
+    let base = backend.render((&sample).into())?.remove(0);
     let at = |q: u32| -> Result<Image> {
         let mut image = base.clone();
         Corrections::new(&sample, &scene.env, detail, q).add_forward(backend, &mut image)?;
@@ -312,8 +310,7 @@ pub fn backward(
     details: &[Option<EnvMap>],
 ) -> Result<(Vec<Gradients>, Choices)> {
     let levels = levels(renderer.backend(), batch, light, details)?;
-    let (mut grads, lod_choices) =
-        renderer.backward_wanted_with(batch, upstream, accuracy, wanted)?;
+    let (mut grads, lod_choices) = renderer.backward_with(batch, upstream, accuracy, wanted)?;
     if wanted.any() {
         for (b, (((scene, g), u), &(q, _))) in batch
             .scenes()

@@ -16,7 +16,10 @@ use matedit::cpu::dense::Dense;
 use matedit::cpu::table::{LobePlan, depends_on_x};
 use matedit::cpu::{FastCpu, SimdLevel};
 use matedit::prepare::Prepared;
-use matedit::{Batch, Camera, Convention, EnvMap, Material, NormalMap, Scene, reference};
+use matedit::{
+    Backend, Batch, Camera, Convention, EnvMap, Jacobian, Material, NormalMap, Scene, Wanted,
+    reference,
+};
 
 const IMAGE_TOL: f64 = 1e-5;
 const GRAD_TOL: f64 = 1e-4;
@@ -46,7 +49,7 @@ fn compare_tol(test: &str, batch: &Batch, image_tol: f64, grad_tol: f64) {
         let truth = Truth::new(&prep, up);
         for cpu in levels() {
             let what = format!("{test} scene {b} {}", cpu.level().name());
-            let (image, grads) = (cpu.forward(&prep), cpu.backward(&prep, up));
+            let (image, grads) = (cpu.forward(&prep), cpu.backward(&prep, up, Wanted::ALL));
             truth.check(&what, &image, &grads, image_tol, grad_tol);
         }
     }
@@ -248,7 +251,7 @@ fn deterministic_across_threads_and_runs() {
             .num_threads(threads)
             .build()
             .unwrap();
-        pool.install(|| (cpu.forward(&prep), cpu.backward(&prep, &up)))
+        pool.install(|| (cpu.forward(&prep), cpu.backward(&prep, &up, Wanted::ALL)))
     };
     let (i1, g1) = run(1);
     let (i2, g2) = run(2);
@@ -265,7 +268,6 @@ fn deterministic_across_threads_and_runs() {
 
 #[test]
 fn describe_names_the_level_and_threads() {
-    use matedit::Backend;
     let d = FastCpu::best().describe();
     assert!(d.starts_with("cpu: f32 "), "{d}");
     assert!(d.contains("thread"), "{d}");
@@ -290,11 +292,16 @@ fn flat_jacobians(j: &[matedit::Jacobian]) -> Vec<f64> {
     j.iter().flatten().flatten().map(|&v| v.into()).collect()
 }
 
+/// dI/dn per pixel of each scene on `backend`, without a backward pass.
+fn jacobians(backend: &dyn Backend, preps: &[Prepared]) -> Vec<Vec<Jacobian>> {
+    let got = backend.normal_jacobians(preps, None).unwrap();
+    got.into_iter().map(|(j, _)| j).collect()
+}
+
 #[test]
 fn normal_jacobians_match_the_reference_backward() {
     // the fast path's one-pass dI^k/dn against the f64 reference's three backward passes
     // (the trait's default), on random, preset, perspective and non-unit-normal scenes
-    use matedit::Backend;
     let mut rng = Rng::new(21);
     let mut cases = Vec::new();
     for camera in [
@@ -329,9 +336,9 @@ fn normal_jacobians_match_the_reference_backward() {
         .for_each(|n| *n = n.map(|c| c * 0.9));
     cases.push(s);
     let preps: Vec<Prepared> = cases.iter().map(Prepared::new).collect();
-    let want = reference::Reference.normal_jacobians(&preps).unwrap();
+    let want = jacobians(&reference::Reference, &preps);
     for cpu in levels() {
-        let got = Backend::normal_jacobians(&cpu, &preps).unwrap();
+        let got = jacobians(&cpu, &preps);
         for (c, (g, w)) in got.iter().zip(&want).enumerate() {
             assert_eq!(g.len(), preps[c].pixels.len());
             let (g, w) = (flat_jacobians(g), flat_jacobians(w));
@@ -343,12 +350,10 @@ fn normal_jacobians_match_the_reference_backward() {
 }
 
 #[test]
-fn backward_with_jacobians_is_both_passes_in_one() {
+fn normal_jacobians_with_backward_is_both_passes_in_one() {
     // the Jacobian from the backward pass's own lobe terms, through the plan kernels (a
     // preset sharing its exponents) and the dense ones (nine lobes of their own): the
     // reference's Jacobian, and gradients bitwise those of the backward pass alone
-    use matedit::Backend;
-    use matedit::scene::Wanted;
     let mut rng = Rng::new(23);
     let mut cases = Vec::new();
     for preset in [Some("plastic-red"), None] {
@@ -371,17 +376,18 @@ fn backward_with_jacobians_is_both_passes_in_one() {
                 .collect(),
         })
         .collect();
-    let want = reference::Reference.normal_jacobians(&preps).unwrap();
+    let want = jacobians(&reference::Reference, &preps);
     let sums = Wanted {
         normals: false,
         ..Wanted::ALL
     };
     for cpu in levels() {
         for wanted in [sums, Wanted::ALL] {
-            let both = Backend::backward_with_jacobians(&cpu, &preps, &ups, wanted).unwrap();
-            let alone = Backend::backward_prepared_wanted(&cpu, &preps, &ups, wanted).unwrap();
-            for (c, ((g, j), (a, w))) in both.iter().zip(alone.iter().zip(&want)).enumerate() {
+            let both = Backend::normal_jacobians(&cpu, &preps, Some((&ups, wanted))).unwrap();
+            let alone = Backend::backward(&cpu, (&preps).into(), &ups, wanted).unwrap();
+            for (c, ((j, g), (a, w))) in both.iter().zip(alone.iter().zip(&want)).enumerate() {
                 let what = format!("case {c} {} {wanted:?}", cpu.level().name());
+                let g = g.as_ref().expect("gradients");
                 assert_eq!(g, a, "{what}: gradients");
                 let (j, w) = (flat_jacobians(j), flat_jacobians(w));
                 assert!(max_abs(&w) > 0.0, "{what}: all zero");
@@ -443,7 +449,8 @@ fn materials_with_nothing_to_share_take_the_dense_kernels() {
             let want = flat32(&plan.forward(&prep));
             let tol = 1e-6 * max_abs(&want);
             assert_close(&what, &flat32(&cpu.forward(&prep)), &want, tol, 0.0);
-            let (got, want) = (cpu.backward(&prep, up), plan.backward(&prep, up));
+            let all = Wanted::ALL;
+            let (got, want) = (cpu.backward(&prep, up, all), plan.backward(&prep, up, all));
             for (part, g, w) in [
                 ("dL", &got.d_env, &want.d_env),
                 ("dn", &got.d_normals, &want.d_normals),

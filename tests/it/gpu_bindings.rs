@@ -10,7 +10,9 @@ use common::{Rng, assert_close, gpu, random_material, random_scene};
 use matedit::gpu::{GpuRenderer, MIN_BYTES, Pass, Tiles};
 use matedit::prepare::Prepared;
 use matedit::reference;
-use matedit::{Backend, Batch, Camera, Convention, EnvMap, Image, NormalMap, Scene, material::idx};
+use matedit::{
+    Backend, Batch, Camera, Convention, EnvMap, Image, NormalMap, Scene, Wanted, material::idx,
+};
 
 /// The smallest size wgpu accepts for a buffer bound to `var`: the span of its type, or
 /// for a runtime-sized array (or a struct ending in one) the size with one element.
@@ -108,10 +110,10 @@ fn check_on(test: &str, renderers: &[(String, GpuRenderer)], scenes: Vec<Scene>,
     let batch = Batch::new(scenes).expect("batch");
     for (name, g) in renderers {
         let images = g
-            .render(&batch)
+            .render((&batch).into())
             .unwrap_or_else(|e| panic!("{test} {name}: forward: {e}"));
         let grads = g
-            .backward(&batch, &up)
+            .backward((&batch).into(), &up, Wanted::ALL)
             .unwrap_or_else(|e| panic!("{test} {name}: backward: {e}"));
         for (b, s) in batch.scenes().iter().enumerate() {
             let prep = Prepared::new(s);
@@ -327,7 +329,7 @@ fn prepared_scenes_with_different_texel_counts() {
     let up: Vec<Image> = scenes.iter().map(ones).collect();
     for (name, g) in renderers(test) {
         let grads = g
-            .backward_prepared(&preps, &up)
+            .backward((&preps).into(), &up, Wanted::ALL)
             .unwrap_or_else(|e| panic!("{test} {name}: {e}"));
         for (b, (prep, u)) in preps.iter().zip(&up).enumerate() {
             let up64: Vec<[f64; 3]> = u.pixels.iter().map(|p| p.map(f64::from)).collect();

@@ -12,7 +12,9 @@ use crate::common;
 use common::{Rng, Truth, assert_close, flat32, gpu, random_scene, scenes, upstream_for};
 use matedit::gpu::Tiles;
 use matedit::prepare::Prepared;
-use matedit::{Backend, Batch, Camera, Convention, EnvMap, Material, NormalMap, Scene, reference};
+use matedit::{
+    Backend, Batch, Camera, Convention, EnvMap, Material, NormalMap, Scene, Wanted, reference,
+};
 
 const TOL: f64 = 1e-4;
 
@@ -23,9 +25,11 @@ fn compare(test: &str, batch: &Batch) {
 }
 
 fn compare_on(g: &matedit::gpu::GpuRenderer, test: &str, batch: &Batch) {
-    let images = g.render(batch).expect("gpu render");
+    let images = g.render(batch.into()).expect("gpu render");
     let up = upstream_for(batch, 99);
-    let grads = g.backward(batch, &up).expect("gpu backward");
+    let grads = g
+        .backward(batch.into(), &up, Wanted::ALL)
+        .expect("gpu backward");
     for (b, scene) in batch.scenes().iter().enumerate() {
         let truth = Truth::new(&Prepared::new(scene), &up[b].pixels);
         let what = format!("{test} scene {b}");
@@ -129,7 +133,7 @@ fn analytic_constant_light_exponent_zero_gpu() {
         return;
     };
     let (scene, want) = constant_light_scene();
-    let img = g.render(&Batch::single(scene).unwrap()).unwrap();
+    let img = g.render((&Batch::single(scene).unwrap()).into()).unwrap();
     assert_close("I (gpu)", &flat32(&img[0].pixels), &[want; 3], 0.0, 1e-3);
 }
 
@@ -175,7 +179,7 @@ fn analytic_one_lobe_against_quadrature() {
     }
     if let Some(g) = gpu("analytic_one_lobe_against_quadrature") {
         let img = g
-            .render(&Batch::single(one_lobe_scene(kappa, gamma, 64)).unwrap())
+            .render((&Batch::single(one_lobe_scene(kappa, gamma, 64)).unwrap()).into())
             .unwrap();
         assert_close(
             "one lobe gpu 64",
@@ -576,15 +580,17 @@ fn a_batch_is_one_dispatch_per_pass_with_each_scenes_own_sums() {
         assert_eq!(zs(matedit::gpu::Pass::BackwardTexel), [5], "{s} slices");
         assert_eq!(zs(matedit::gpu::Pass::BackwardNormal), [5], "{s} slices");
         assert_eq!(zs(matedit::gpu::Pass::ReduceCtrl), [5], "{s} slices");
-        g.render(&batch).unwrap();
+        g.render((&batch).into()).unwrap();
         assert_eq!(zs(matedit::gpu::Pass::Forward), [5], "{s} slices");
         // output_bits orders images, then gradients, scene by scene
         let up = upstream_for(&batch, 5);
         let mut alone: (Vec<u32>, Vec<u32>) = Default::default();
         for (b, scene) in five.iter().enumerate() {
             let one = Batch::single(scene.clone()).unwrap();
-            let img = g.render(&one).unwrap();
-            let grad = g.backward(&one, std::slice::from_ref(&up[b])).unwrap();
+            let img = g.render((&one).into()).unwrap();
+            let grad = g
+                .backward((&one).into(), std::slice::from_ref(&up[b]), Wanted::ALL)
+                .unwrap();
             alone
                 .0
                 .extend(img[0].pixels.iter().flatten().map(|x| x.to_bits()));
@@ -642,8 +648,8 @@ fn slices_under_forced_caps() {
 /// Every output of a forward and a backward call, as bits.
 fn output_bits(g: &matedit::gpu::GpuRenderer, batch: &Batch) -> Vec<u32> {
     let up = upstream_for(batch, 5);
-    let images = g.render(batch).unwrap();
-    let grads = g.backward(batch, &up).unwrap();
+    let images = g.render(batch.into()).unwrap();
+    let grads = g.backward(batch.into(), &up, Wanted::ALL).unwrap();
     images
         .iter()
         .flat_map(|i| i.pixels.iter().flatten())
@@ -727,7 +733,7 @@ fn dispatches_follow_the_plan_and_passes_are_timed() {
     let batch = scenes::equirect_64x128();
     let prep = Prepared::new(&batch.scenes()[0]);
     let (np, nl, nt) = (prep.pixels.len(), prep.lit.len(), prep.texels.len());
-    g.render(&batch).unwrap();
+    g.render((&batch).into()).unwrap();
     assert_eq!(g.last_dispatches(), g.planner().forward(np, nl));
     let timed = g.context().timestamps;
     let t = g.last_timings();
@@ -745,7 +751,7 @@ fn dispatches_follow_the_plan_and_passes_are_timed() {
         .iter()
         .filter(|p| up[0].pixels[p.index].iter().any(|&v| v != 0.0))
         .count();
-    g.backward(&batch, &up).unwrap();
+    g.backward((&batch).into(), &up, Wanted::ALL).unwrap();
     assert_eq!(
         g.last_dispatches(),
         g.planner().backward(np, nl, nt, active)

@@ -21,7 +21,7 @@ const ALWAYS: lod::Chooser = lod::Chooser {
 use matedit::reference::Reference;
 use matedit::{
     Backend, Batch, Camera, Convention, EnvMap, Gradients, Image, Material, NormalMap, Renderer,
-    Scene,
+    Scene, Wanted,
 };
 
 /// The approximations whose adjoints are checked.
@@ -270,13 +270,20 @@ fn exact_method_is_the_backend_bitwise() {
         let up = upstream_for(&batch, 4);
         let (image, grads) = run(&cpu, &scene, &up[0], &Method::EXACT);
         assert_eq!(image, renderer.render(&batch).unwrap()[0], "{conv:?}");
-        assert_eq!(image, Backend::render(&cpu, &batch).unwrap()[0], "{conv:?}");
+        assert_eq!(
+            image,
+            Backend::render(&cpu, (&batch).into()).unwrap()[0],
+            "{conv:?}"
+        );
         assert_eq!(
             grads,
             renderer.backward(&batch, &up).unwrap()[0],
             "{conv:?}"
         );
-        assert_eq!(grads, Backend::backward(&cpu, &batch, &up).unwrap()[0]);
+        assert_eq!(
+            grads,
+            Backend::backward(&cpu, (&batch).into(), &up, Wanted::ALL).unwrap()[0]
+        );
     }
 }
 

@@ -6,7 +6,8 @@ use crate::common;
 use common::{Rng, assert_close, flat32, flat64, gpu};
 use matedit::prepare::Prepared;
 use matedit::{
-    Backend, Batch, Camera, Convention, EnvMap, Image, Material, NormalMap, Scene, reference,
+    Backend, Batch, Camera, Convention, EnvMap, Image, Material, NormalMap, Scene, Wanted,
+    reference,
 };
 
 fn all_finite(v: &[f64]) -> bool {
@@ -85,7 +86,7 @@ fn extreme_valid_inputs_give_finite_outputs_fast_cpu() {
                 1e-4 * scale,
                 0.0,
             );
-            let g = cpu.backward(&prep, &[[1.0; 3]; 6]);
+            let g = cpu.backward(&prep, &[[1.0; 3]; 6], Wanted::ALL);
             assert!(
                 all_finite(&flat32(&g.d_env)),
                 "{level} scene {i}: dL not finite"
@@ -108,7 +109,7 @@ fn extreme_valid_inputs_give_finite_outputs_gpu() {
     };
     for (i, s) in extreme_scenes().into_iter().enumerate() {
         let batch = Batch::single(s).unwrap();
-        let img = g.render(&batch).unwrap();
+        let img = g.render((&batch).into()).unwrap();
         assert!(
             all_finite(&flat32(&img[0].pixels)),
             "scene {i}: image not finite"
@@ -118,7 +119,7 @@ fn extreme_valid_inputs_give_finite_outputs_gpu() {
             height: 1,
             pixels: vec![[1.0; 3]; 6],
         }];
-        let r = g.backward(&batch, &up).unwrap();
+        let r = g.backward((&batch).into(), &up, Wanted::ALL).unwrap();
         assert!(all_finite(&flat32(&r[0].d_env)), "scene {i}: dL not finite");
         assert!(
             all_finite(&flat32(&r[0].d_normals)),
@@ -150,7 +151,7 @@ fn small_scale_lobes_keep_their_digits_on_gpu() {
     );
     s.material = Material::constant("faint", [(1e-6, 0.0), (3e-6, 4.0), (0.0, 0.0)]).unwrap();
     let want = flat64(&reference::forward(&Prepared::new(&s)));
-    let got = flat32(&g.render(&Batch::single(s).unwrap()).unwrap()[0].pixels);
+    let got = flat32(&g.render((&Batch::single(s).unwrap()).into()).unwrap()[0].pixels);
     assert_close("faint image", &got, &want, 1e-30, 1e-5);
 }
 

@@ -56,7 +56,7 @@ fn check(name: &str, backend: Box<dyn Backend>, bitwise: bool) {
         for wanted in subsets() {
             let what = format!("{name} {camera:?} {wanted:?}");
             let (mut g, _) = r
-                .backward_wanted_with(&batch, &up, &Accuracy::Exact, wanted)
+                .backward_with(&batch, &up, &Accuracy::Exact, wanted)
                 .unwrap();
             let g: Gradients = g.remove(0);
             let parts: [(bool, Vec<f64>, Vec<f64>, &str); 3] = [

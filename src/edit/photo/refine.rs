@@ -96,7 +96,7 @@ pub(super) fn refine_normals(
         let img = renderer.render(&batch)?.remove(0);
         let (_, up) = data_term(&img, work, c, n);
         let (mut grads, _) =
-            renderer.backward_wanted_with(&batch, &[up], &crate::Accuracy::Exact, wanted)?;
+            renderer.backward_with(&batch, &[up], &crate::Accuracy::Exact, wanted)?;
         let d_n = grads.remove(0).d_normals;
         let mut g: Vec<[f64; 3]> = vec![[0.0; 3]; w * h];
         for &i in &on {

@@ -247,8 +247,9 @@ impl<'a> Trial<'a> {
             let grads = match &upstream {
                 Some(u) if grads => {
                     let jac = backend
-                        .normal_jacobians(std::slice::from_ref(&sample))?
-                        .remove(0);
+                        .normal_jacobians(std::slice::from_ref(&sample), None)?
+                        .remove(0)
+                        .0;
                     let mut g = Gradients::zeros(0, sample.pixels.len());
                     for (px, j) in sample.pixels.iter().zip(jac) {
                         let up = u.pixels[px.index];
@@ -379,7 +380,7 @@ impl<'a> Trial<'a> {
                 return Ok(e);
             }
         }
-        let g = plan.backward_wanted(self.backend, sample_up, NORMALS)?;
+        let g = plan.backward(self.backend, sample_up, NORMALS)?;
         e.d_normals = Some(rel(&g.d_normals, &exact.d_normals));
         trace("  dn", t);
         if !sums_first && e.scaled(chooser) <= tol {
@@ -401,7 +402,7 @@ impl<'a> Trial<'a> {
                 let exact =
                     Plan::masked(self.backend, full, env, &Method::EXACT, &full.pixels, &mask)?;
                 trace("    truth plan", t);
-                let grads = exact.backward_wanted(self.backend, up, SUMS)?;
+                let grads = exact.backward(self.backend, up, SUMS)?;
                 trace("    truth backward", t);
                 self.texels.get_or_init(|| TexelTruth { mask, grads })
             }
@@ -410,7 +411,7 @@ impl<'a> Trial<'a> {
         let t = std::time::Instant::now();
         let plan = Plan::masked(self.backend, full, env, method, &full.pixels, mask)?;
         trace("    sums plan", t);
-        let g = plan.backward_wanted(self.backend, up, SUMS)?;
+        let g = plan.backward(self.backend, up, SUMS)?;
         trace("    sums backward", t);
         Ok((
             rel_masked(&g.d_env, &texels.grads.d_env, mask),

@@ -8,6 +8,7 @@
 use matedit::lod::{self, Method};
 use matedit::{
     Backend, Batch, Camera, Convention, EnvMap, Gradients, Image, Material, NormalMap, Scene,
+    Wanted,
 };
 
 /// One scene of a sweep. `valid` says whether the scene is valid input (an invalid one
@@ -262,9 +263,12 @@ pub fn run(
     let up = upstream(scene.normals.width, scene.normals.height);
     if *method == Method::EXACT {
         let batch = Batch::single(scene.clone()).map_err(|e| e.to_string())?;
-        let img = backend.render(&batch).map_err(|e| e.to_string())?.remove(0);
+        let img = backend
+            .render((&batch).into())
+            .map_err(|e| e.to_string())?
+            .remove(0);
         let g = backend
-            .backward(&batch, &[up])
+            .backward((&batch).into(), &[up], Wanted::ALL)
             .map_err(|e| e.to_string())?
             .remove(0);
         Ok((img, g))

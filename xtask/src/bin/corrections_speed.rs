@@ -65,11 +65,7 @@ fn main() -> matedit::Result<()> {
                 camera: Camera::Orthographic,
             };
             let prep = Prepared::new(&scene);
-            let layer = time(&mut || {
-                backend
-                    .render_prepared(std::slice::from_ref(&prep))
-                    .map(drop)
-            })?;
+            let layer = time(&mut || backend.render((&prep).into()).map(drop))?;
             let mut c = None;
             let group = time(&mut || {
                 c = Some(Corrections::new(
@@ -81,9 +77,7 @@ fn main() -> matedit::Result<()> {
                 Ok(())
             })?;
             let c = c.expect("built");
-            let mut image = backend
-                .render_prepared(std::slice::from_ref(&prep))?
-                .remove(0);
+            let mut image = backend.render((&prep).into())?.remove(0);
             let add = time(&mut || c.add_forward(backend.as_ref(), &mut image))?;
             println!(
                 "N {n}: layer {layer:.4} s, grouping {group:.4} s, corrections {add:.4} s ({}; {} pairs)",

@@ -134,7 +134,7 @@ fn main() -> Result<(), String> {
                 outs.push(match pass {
                     "fwd" => vec![cpu.forward(&prep)],
                     "bwd" => {
-                        let gr = cpu.backward(&prep, &g);
+                        let gr = cpu.backward(&prep, &g, matedit::Wanted::ALL);
                         vec![gr.d_env, gr.d_normals]
                     }
                     _ => return Err(format!("unknown pass '{pass}': expected fwd or bwd")),

@@ -327,7 +327,7 @@ fn oracle(
             break;
         }
         let (grads, _) = renderer
-            .backward_wanted_with(&batch, &ups, &matedit::Accuracy::Exact, wanted)
+            .backward_with(&batch, &ups, &matedit::Accuracy::Exact, wanted)
             .map_err(err)?;
         let g: Vec<f64> = (0..N_PARAMS)
             .map(|i| {

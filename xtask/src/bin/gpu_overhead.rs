@@ -10,7 +10,7 @@
 use std::time::Instant;
 
 use matedit::gpu::GpuRenderer;
-use matedit::{Backend, Batch, Camera, Convention, Image, Material, NormalMap, Scene};
+use matedit::{Backend, Batch, Camera, Convention, Image, Material, NormalMap, Scene, Wanted};
 
 fn material() -> Material {
     // nine lobe-channels with scales and exponents spread over the range a fit gives
@@ -78,8 +78,8 @@ fn main() -> matedit::Result<()> {
             let host: Vec<f64> = call.iter().zip(&gpu).map(|(c, g)| c - g).collect();
             Ok::<_, matedit::Error>((median(call), median(gpu), median(host)))
         };
-        let f = time(&|| g.render(&batch).map(drop))?;
-        let b = time(&|| g.backward(&batch, &up).map(drop))?;
+        let f = time(&|| g.render((&batch).into()).map(drop))?;
+        let b = time(&|| g.backward((&batch).into(), &up, Wanted::ALL).map(drop))?;
         println!(
             "{n:>6} {:>9} {:>9.2}ms {:>9.2}ms {:>9.2}ms {:>9.2}ms {:>9.2}ms {:>9.2}ms",
             "warm",

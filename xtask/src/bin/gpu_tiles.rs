@@ -7,7 +7,7 @@
 //! 3 calls after a warm-up, from GPU timestamps.
 
 use matedit::gpu::{GpuRenderer, PassTiming, Tiles};
-use matedit::{Backend, Batch, Camera, Convention, Image, NormalMap, Scene};
+use matedit::{Backend, Batch, Camera, Convention, Image, NormalMap, Scene, Wanted};
 
 fn main() -> matedit::Result<()> {
     let n: usize = std::env::args()
@@ -40,11 +40,11 @@ fn main() -> matedit::Result<()> {
                 Ok::<_, matedit::Error>(calls.swap_remove(1))
             };
             let fwd = med(&|| {
-                g.render(&batch)?;
+                g.render((&batch).into())?;
                 Ok(g.last_timings())
             })?;
             let bwd = med(&|| {
-                g.backward(&batch, &up)?;
+                g.backward((&batch).into(), &up, Wanted::ALL)?;
                 Ok(g.last_timings())
             })?;
             println!("{tiles:?}, {slices} slice(s), {n} x {n}, {}", g.describe());
