@@ -35,7 +35,7 @@ pub type Jacobian = [[f32; 3]; 3];
 /// A batch lets a backend take its own fast path (the GPU reads the pixels from the normal
 /// maps and runs the whole batch in one submission; the fast CPU path prepares each scene on
 /// its own thread); prepared scenes are what the levels of detail in [`crate::lod`] and
-/// [`crate::supersample`] hand a backend (a downsampled map, a table's nodes as pixels).
+/// [`crate::continuous_light`] hand a backend (a downsampled map, a table's nodes as pixels).
 #[derive(Clone, Copy, Debug)]
 pub enum Scenes<'a> {
     /// A batch's scenes, prepared by the backend as it runs them.

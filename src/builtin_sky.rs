@@ -16,7 +16,7 @@
 use crate::envmap::{Convention, EnvMap};
 
 /// `matedit render`'s level of the continuous light for the built-in sky (see
-/// [`crate::supersample`]): without it a glossy sphere shows the sky's texels as rings
+/// [`crate::continuous_light`]): without it a glossy sphere shows the sky's texels as rings
 /// near its rim. Level 1 (sub-texels as wide as the lobe) removes them at about twice the
 /// layer's time on the default sphere (docs/continuous_light.md).
 pub const LIGHT_LEVEL: u32 = 1;

@@ -33,7 +33,7 @@
 //!   the CPU with candle from their safetensors weights (on the scene types);
 //! - what uses the renderer: [`edit`] (a material fitted to an image), [`synth`]
 //!   (datasets), [`fit_brdf`] (the DSBRDF fitted to measured [`brdf`]s), [`io`] (files in and
-//!   out), [`supersample`] (the continuous light);
+//!   out), [`continuous_light`] (the continuous light);
 //! - [`renderer`]: [`Device`], [`Renderer`], [`Accuracy`];
 //! - [`lod`]: levels of detail, on any backend;
 //! - the backends: [`gpu`], [`cpu`], [`reference`](mod@reference);
@@ -52,6 +52,7 @@ pub mod backend;
 pub mod brdf;
 pub mod builtin_sky;
 pub mod camera;
+pub mod continuous_light;
 pub mod cpu;
 pub mod edit;
 pub mod envgen;
@@ -75,7 +76,6 @@ pub mod serve;
 pub mod shapes;
 pub mod spline;
 pub mod splitmix;
-pub mod supersample;
 pub mod synth;
 
 pub use backend::{Backend, Jacobian, PassTiming};

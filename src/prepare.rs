@@ -43,7 +43,7 @@ pub struct TexelRec {
 
 /// One light direction given to [`Prepared::from_lights`].
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Light {
+pub struct PointLight {
     /// Where its dLoss/dL goes: r * W_L + c in the grid the gradients are laid out in.
     pub index: usize,
     /// Unit direction towards the light.
@@ -170,13 +170,13 @@ fn map_lights(
     env_width: usize,
     convention: Convention,
     env: &[[f64; 3]],
-) -> Vec<Light> {
+) -> Vec<PointLight> {
     let mut lights = Vec::with_capacity(env_height * env_width);
     for r in 0..env_height {
         for c in 0..env_width {
             let (w, d_omega) = convention.texel(r, c, env_height, env_width);
             let index = r * env_width + c;
-            lights.push(Light {
+            lights.push(PointLight {
                 index,
                 w,
                 d_omega,
@@ -292,7 +292,7 @@ impl Prepared {
         pixels: Vec<PixelRec>,
         env_height: usize,
         env_width: usize,
-        lights: &[Light],
+        lights: &[PointLight],
         ctrl: &[f64; N_PARAMS],
         camera: Camera,
     ) -> Self {
@@ -300,7 +300,7 @@ impl Prepared {
         let (active_lobes, const_lobes) = classify_lobes(ctrl);
         let mut texels = Vec::with_capacity(lights.len());
         let mut lit = Vec::new();
-        for &Light {
+        for &PointLight {
             index,
             w,
             d_omega,

@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use matedit::fit_brdf::job::{self, Source};
+use matedit::fit_brdf::job::{self, BrdfSource};
 use matedit::fit_brdf::{BrdfFitOptions, Lobes};
 
 use super::shared::{Failure, progress_bar, runtime};
@@ -78,13 +78,13 @@ fn parse_tolerance_slack(v: &str) -> Result<f64, String> {
 pub fn run(args: &Args) -> Result<(), Failure> {
     let (source, label) = match (&args.nbrdf, &args.merl) {
         (Some(path), _) => (
-            Source::Nbrdf {
+            BrdfSource::Nbrdf {
                 path: path.clone(),
                 name: args.name.clone(),
             },
             path.display().to_string(),
         ),
-        (None, Some(path)) => (Source::Merl(path.clone()), path.display().to_string()),
+        (None, Some(path)) => (BrdfSource::Merl(path.clone()), path.display().to_string()),
         (None, None) => unreachable!("clap requires --nbrdf or --merl"),
     };
     // Outputs are checked before minutes of fitting.

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use matedit::io;
-use matedit::{Wanted, supersample};
+use matedit::{Wanted, continuous_light};
 
 use super::shared::{
     Failure, SceneArgs, check_method, light_details, print_timings, renderer, report, report_light,
@@ -78,7 +78,7 @@ pub fn run(args: &Args) -> Result<(), Failure> {
     }
     let accuracy = args.scene.accuracy();
     check_method(&accuracy, &loaded.batch)?;
-    let light = args.scene.light(supersample::Light::Discrete);
+    let light = args.scene.light(continuous_light::Integration::Discrete);
     for s in loaded.batch.scenes() {
         light.validate(s)?;
     }
@@ -86,7 +86,7 @@ pub fn run(args: &Args) -> Result<(), Failure> {
     let renderer = renderer(args.scene.device, args.scene.threads)?;
     let start = Instant::now();
     let (grads, (choices, light_choices)) = with_progress("differentiating", || {
-        supersample::backward(
+        continuous_light::backward(
             &renderer,
             &loaded.batch,
             &upstream,

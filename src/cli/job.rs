@@ -258,7 +258,7 @@ impl Plan {
 
 impl Plan {
     /// Per scene of [`Plan::load`]'s batch (whose maps it is given), a finer map of the
-    /// same light for the continuous light (`matedit::supersample`): the procedural
+    /// same light for the continuous light (`matedit::continuous_light`): the procedural
     /// environment generated at `factor` times the rows and columns; a file brought to the
     /// largest power-of-two multiple of its scene's map, up to `factor`, that its own size
     /// allows (none when it is no larger). Files shared by several scenes are read once.

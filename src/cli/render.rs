@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use matedit::{builtin_sky, io, supersample};
+use matedit::{builtin_sky, continuous_light, io};
 
 use super::shared::{
     Failure, PreviewArgs, SceneArgs, check_method, light_details, print_timings, renderer, report,
@@ -48,9 +48,9 @@ pub fn run(args: &Args) -> Result<(), Failure> {
     // the built-in sky is a picture to look at: its default is the continuous light
     let builtin = args.scene.env.is_none() && args.scene.batch.is_none();
     let light = args.scene.light(if builtin {
-        supersample::Light::Level(builtin_sky::LIGHT_LEVEL)
+        continuous_light::Integration::Level(builtin_sky::LIGHT_LEVEL)
     } else {
-        supersample::Light::Discrete
+        continuous_light::Integration::Discrete
     });
     for s in loaded.batch.scenes() {
         light.validate(s)?;
@@ -59,7 +59,7 @@ pub fn run(args: &Args) -> Result<(), Failure> {
     let renderer = renderer(args.scene.device, args.scene.threads)?;
     let start = Instant::now();
     let (images, (choices, light_choices)) = with_progress("rendering", || {
-        supersample::render(&renderer, &loaded.batch, &accuracy, light, &details)
+        continuous_light::render(&renderer, &loaded.batch, &accuracy, light, &details)
     })?;
     if args.scene.timings {
         print_timings(&renderer, start.elapsed());

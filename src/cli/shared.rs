@@ -8,7 +8,7 @@ use std::time::Duration;
 
 use matedit::io::source::{MaterialSource, NormalsSource};
 use matedit::io::{self, EnvSize, Preview, Tonemap};
-use matedit::{Accuracy, Batch, Convention, Device, Error, Renderer, lod, supersample};
+use matedit::{Accuracy, Batch, Convention, Device, Error, Renderer, continuous_light, lod};
 
 use super::job::{Plan, SceneOptions};
 
@@ -97,11 +97,11 @@ impl SceneArgs {
     }
 
     /// `--light-tolerance` or `--supersample`, else `default`.
-    pub fn light(&self, default: supersample::Light) -> supersample::Light {
+    pub fn light(&self, default: continuous_light::Integration) -> continuous_light::Integration {
         match (self.light_tolerance, self.supersample) {
-            (Some(LightTolerance(Some(t))), _) => supersample::Light::Tolerance(t),
-            (Some(LightTolerance(None)), _) => supersample::Light::Discrete,
-            (None, Some(q)) => supersample::Light::Level(q),
+            (Some(LightTolerance(Some(t))), _) => continuous_light::Integration::Tolerance(t),
+            (Some(LightTolerance(None)), _) => continuous_light::Integration::Discrete,
+            (None, Some(q)) => continuous_light::Integration::Level(q),
             (None, None) => default,
         }
     }
@@ -185,17 +185,22 @@ pub fn parse_tolerance(s: &str) -> Result<f64, String> {
 pub fn light_details(
     plan: &Plan,
     batch: &Batch,
-    light: supersample::Light,
+    light: continuous_light::Integration,
 ) -> Result<Vec<Option<matedit::EnvMap>>, Failure> {
     match light {
-        supersample::Light::Discrete | supersample::Light::Level(0) => Ok(Vec::new()),
+        continuous_light::Integration::Discrete | continuous_light::Integration::Level(0) => {
+            Ok(Vec::new())
+        }
         _ => Ok(plan.details(batch, matedit::builtin_sky::LIGHT_DETAIL)?),
     }
 }
 
 /// A fixed level of the continuous light, on stderr.
-pub fn report_light_level(light: supersample::Light, details: &[Option<matedit::EnvMap>]) {
-    if let supersample::Light::Level(q @ 1..) = light {
+pub fn report_light_level(
+    light: continuous_light::Integration,
+    details: &[Option<matedit::EnvMap>],
+) {
+    if let continuous_light::Integration::Level(q @ 1..) = light {
         let from = match details.first().and_then(Option::as_ref) {
             Some(d) => format!("sub-texels from the light at {}x{}", d.height, d.width),
             None => "radiance constant over each texel".into(),
@@ -323,7 +328,7 @@ pub fn check_method(accuracy: &Accuracy, batch: &Batch) -> Result<(), Failure> {
 }
 
 /// The light each scene got with a tolerance, on stderr.
-pub fn report_light(choices: &[Option<supersample::Choice>]) {
+pub fn report_light(choices: &[Option<continuous_light::LevelChoice>]) {
     report_each("continuous light", choices);
 }
 

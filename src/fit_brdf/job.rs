@@ -15,7 +15,7 @@ pub use crate::presets::{BUNDLE_FORMAT, Bundle, BundleEntry};
 
 /// Where the BRDFs come from.
 #[derive(Clone, Debug)]
-pub enum Source {
+pub enum BrdfSource {
     /// An NBRDF network file; `name` picks one material, `None` takes all.
     Nbrdf {
         /// The file.
@@ -36,9 +36,9 @@ pub struct Named {
 }
 
 /// Loads the BRDFs of `source`.
-pub fn load(source: &Source) -> Result<Vec<Named>> {
+pub fn load(source: &BrdfSource) -> Result<Vec<Named>> {
     match source {
-        Source::Nbrdf { path, name } => {
+        BrdfSource::Nbrdf { path, name } => {
             let nets = nbrdf::read(path)?;
             let nets: Vec<_> = match name {
                 None => nets,
@@ -62,7 +62,7 @@ pub fn load(source: &Source) -> Result<Vec<Named>> {
                 })
                 .collect())
         }
-        Source::Merl(path) => {
+        BrdfSource::Merl(path) => {
             let table = merl::read(path)?;
             Ok(vec![Named {
                 name: table.name.clone(),

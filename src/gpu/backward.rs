@@ -4,7 +4,7 @@ use super::buffers::{ParamsTable, Slot};
 use super::forward::{
     Input, Texels, bases, batch_params, encode_per_pixel, range_of, storage_texels, tiled,
 };
-use super::layout::{Params, Pixel, Texel};
+use super::layout::{DispatchParams, Pixel, Texel};
 use super::pixels::Selection;
 use super::plan::SHARE_BYTES;
 use super::submission::Submission;
@@ -117,7 +117,7 @@ fn encode_texel_scene(
     let tex = storage_texels(sub, "texels", &[prep], Texels::All)?;
     // with no texels no range reduces into it
     let d_ctrl = sub.zeroed("d_ctrl", SHARE_BYTES);
-    let base = Params::for_scene(prep);
+    let base = DispatchParams::for_scene(prep);
     let mut env_slots = Vec::new();
     for (ri, o) in shape.outer_ranges().into_iter().enumerate() {
         let nt = o.len();
@@ -126,7 +126,7 @@ fn encode_texel_scene(
             .iter()
             .enumerate()
             .map(|(k, q)| {
-                table.push(Params {
+                table.push(DispatchParams {
                     n_pixels: q.len() as u32,
                     n_texels: nt as u32,
                     first: (k == 0) as u32,
@@ -137,7 +137,7 @@ fn encode_texel_scene(
                 })
             })
             .collect();
-        let reduce_offset = table.push(Params {
+        let reduce_offset = table.push(DispatchParams {
             n_pixels: 0,
             n_texels: nt as u32,
             first: (ri == 0) as u32,

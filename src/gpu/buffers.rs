@@ -7,8 +7,8 @@
 use std::collections::HashMap;
 use std::sync::MutexGuard;
 
+use super::layout::DispatchParams;
 use super::layout::PARAMS_STRIDE;
-use super::layout::Params;
 use crate::error::{Error, Result};
 
 /// Smallest buffer made: bindings cannot be empty, and a binding must hold at least one
@@ -197,7 +197,7 @@ pub fn map(device: &wgpu::Device, buffer: &wgpu::Buffer, mode: wgpu::MapMode) ->
         .map_err(|e| Error::Gpu(format!("mapping a buffer: {e}")))
 }
 
-/// Per-dispatch [`Params`], [`PARAMS_STRIDE`] bytes apart, bound with a dynamic offset.
+/// Per-dispatch [`DispatchParams`], [`PARAMS_STRIDE`] bytes apart, bound with a dynamic offset.
 #[derive(Default)]
 pub struct ParamsTable {
     /// The table's bytes.
@@ -206,13 +206,13 @@ pub struct ParamsTable {
 
 impl ParamsTable {
     /// Appends `p`; returns its dynamic offset.
-    pub fn push(&mut self, p: Params) -> u32 {
+    pub fn push(&mut self, p: DispatchParams) -> u32 {
         self.push_scenes(&[p])
     }
 
     /// Appends `scenes` as one array (a batched dispatch's, one per scene); returns its
     /// dynamic offset.
-    pub fn push_scenes(&mut self, scenes: &[Params]) -> u32 {
+    pub fn push_scenes(&mut self, scenes: &[DispatchParams]) -> u32 {
         let offset = self.bytes.len();
         self.bytes.extend_from_slice(bytemuck::cast_slice(scenes));
         let end = self.bytes.len().next_multiple_of(PARAMS_STRIDE as usize);

@@ -3,9 +3,9 @@
 use rayon::prelude::*;
 
 use super::buffers::{MIN_BYTES, ParamsTable, Slot};
-use super::layout::{CHUNK_BYTES, Params, Pixel, Texel};
+use super::layout::{CHUNK_BYTES, DispatchParams, Pixel, Texel};
 use super::pipelines::Tiles;
-use super::pixels::{Selection, Source};
+use super::pixels::{PixelSource, Selection};
 use super::submission::Submission;
 use super::{GpuRenderer, Pass};
 use crate::error::Result;
@@ -16,10 +16,10 @@ use crate::scene::Image;
 /// come from.
 pub struct Input<'a> {
     /// The scene's lights, material and camera (its pixel list is used only by
-    /// [`Source::Listed`]).
+    /// [`PixelSource::Listed`]).
     pub prep: &'a Prepared,
     /// Its pixels.
-    pub source: Source<'a>,
+    pub source: PixelSource<'a>,
 }
 
 /// Which of a scene's texels a pass reads: the lit ones (the per-pixel passes) or all
@@ -115,21 +115,21 @@ pub(super) fn bases(counts: &[usize]) -> Vec<usize> {
         .collect()
 }
 
-/// Per scene of a batched dispatch of `shape`, its [`Params`]: `np[z]` pixels and `nt[z]`
+/// Per scene of a batched dispatch of `shape`, its [`DispatchParams`]: `np[z]` pixels and `nt[z]`
 /// texels at their starts in the concatenated buffers, its slices of `inner[z]` records
 /// (the looped-over ones) as long as they would be were it alone.
 pub(super) fn batch_params(
     inputs: &[Input<'_>],
-    shape: &super::Shape,
+    shape: &super::GatherShape,
     np: &[usize],
     nt: &[usize],
     inner: &[usize],
-) -> Vec<Params> {
+) -> Vec<DispatchParams> {
     let (pixel_base, texel_base) = (bases(np), bases(nt));
     inputs
         .iter()
         .enumerate()
-        .map(|(z, input)| Params {
+        .map(|(z, input)| DispatchParams {
             n_pixels: np[z] as u32,
             n_texels: nt[z] as u32,
             first: 1,
@@ -138,7 +138,7 @@ pub(super) fn batch_params(
             pixel_base: pixel_base[z] as u32,
             texel_base: texel_base[z] as u32,
             slice_stride: shape.outer as u32,
-            ..Params::for_scene(input.prep)
+            ..DispatchParams::for_scene(input.prep)
         })
         .collect()
 }
@@ -259,7 +259,7 @@ fn encode_scene(
         std::slice::from_ref(sel),
         bytes,
     )?;
-    let base = Params::for_scene(prep);
+    let base = DispatchParams::for_scene(prep);
     let mut slots = Vec::new();
     for o in shape.outer_ranges() {
         let n = o.len();
@@ -268,7 +268,7 @@ fn encode_scene(
             .iter()
             .enumerate()
             .map(|(k, t)| {
-                table.push(Params {
+                table.push(DispatchParams {
                     n_pixels: n as u32,
                     n_texels: t.len() as u32,
                     first: (k == 0) as u32,

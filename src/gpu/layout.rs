@@ -53,7 +53,7 @@ const _: () = assert!(CHUNK_BYTES <= 65536 && CHUNK_BYTES.is_multiple_of(256));
 /// common.wgsl).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct Params {
+pub struct DispatchParams {
     /// Pixels bound (per-pixel passes: one invocation each; backward_texel: looped over);
     /// reduce_slices: the vec4 elements of one slice.
     pub n_pixels: u32,
@@ -87,16 +87,16 @@ pub struct Params {
     /// the active then the constant lobes, over channels (R, G, B), scales times log2(e).
     pub lc: [[f32; 4]; 36],
 }
-const _: () = assert!(size_of::<Params>().is_multiple_of(16));
+const _: () = assert!(size_of::<DispatchParams>().is_multiple_of(16));
 
-/// Bytes between two dispatches' [`Params`] in the params buffer: a multiple of 256, the
+/// Bytes between two dispatches' [`DispatchParams`] in the params buffer: a multiple of 256, the
 /// largest uniform offset alignment wgpu allows.
-pub const PARAMS_STRIDE: u64 = size_of::<Params>().next_multiple_of(256) as u64;
+pub const PARAMS_STRIDE: u64 = size_of::<DispatchParams>().next_multiple_of(256) as u64;
 
-impl Params {
-    /// Params for a prepared scene.
+impl DispatchParams {
+    /// DispatchParams for a prepared scene.
     pub fn for_scene(prep: &crate::prepare::Prepared) -> Self {
-        let mut p = Params::new(
+        let mut p = DispatchParams::new(
             &prep.ctrl,
             !prep.camera.is_orthographic(),
             prep.active_lobes.len(),
@@ -119,7 +119,7 @@ impl Params {
         p
     }
 
-    /// Params with the material's control points rearranged for `pair_coef`.
+    /// DispatchParams with the material's control points rearranged for `pair_coef`.
     pub fn new(ctrl: &[f64; N_PARAMS], perspective: bool, n_lobes: usize) -> Self {
         let mut cc = [[0.0f32; 4]; 36];
         for k in 0..3 {
@@ -131,7 +131,7 @@ impl Params {
                 }
             }
         }
-        Params {
+        DispatchParams {
             n_pixels: 0,
             n_texels: 0,
             first: 0,

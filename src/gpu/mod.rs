@@ -22,7 +22,7 @@ use std::sync::Mutex;
 pub use buffers::MIN_BYTES;
 pub use context::GpuContext;
 pub use pipelines::{Pass, Tiles};
-pub use plan::{Dispatch, Planner, Shape};
+pub use plan::{Dispatch, GatherShape, Planner};
 
 use crate::Backend;
 use crate::backend::Scenes;
@@ -33,7 +33,7 @@ use buffers::Pool;
 use cache::DiskCache;
 use forward::Input;
 use pipelines::Pipeline;
-use pixels::Source;
+use pixels::PixelSource;
 use submission::LastRun;
 
 pub use crate::backend::PassTiming;
@@ -270,7 +270,7 @@ fn listed(preps: &[Prepared]) -> Vec<Input<'_>> {
         .iter()
         .map(|prep| Input {
             prep,
-            source: Source::Listed(&prep.pixels),
+            source: PixelSource::Listed(&prep.pixels),
         })
         .collect()
 }
@@ -292,7 +292,7 @@ fn mapped<'a>(batch: &'a Batch, preps: &'a [Prepared]) -> Vec<Input<'a>> {
         .zip(preps)
         .map(|(s, prep)| Input {
             prep,
-            source: Source::Map(&s.normals, s.camera),
+            source: PixelSource::Map(&s.normals, s.camera),
         })
         .collect()
 }

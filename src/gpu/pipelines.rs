@@ -4,7 +4,7 @@
 
 use std::num::NonZeroU64;
 
-use super::layout::{CHUNK_BYTES, Params};
+use super::layout::{CHUNK_BYTES, DispatchParams};
 
 /// shaders/common.wgsl.
 pub const COMMON_WGSL: &str = include_str!("../../shaders/common.wgsl");
@@ -143,7 +143,12 @@ impl Pipeline {
         } else {
             wgpu::BufferBindingType::Uniform
         };
-        let mut entries = vec![buffer_entry(0, params, true, size_of::<Params>() as u64)];
+        let mut entries = vec![buffer_entry(
+            0,
+            params,
+            true,
+            size_of::<DispatchParams>() as u64,
+        )];
         if pass.is_gather() {
             entries.push(match tiles {
                 Tiles::Workgroup => buffer_entry(

@@ -26,18 +26,18 @@ const WORDS: usize = size_of::<Pixel>() / 16;
 /// Where a scene's pixels come from: a prepared list, or a normal map read directly
 /// (no list built: the records are computed where they are written).
 #[derive(Clone, Copy)]
-pub enum Source<'a> {
+pub enum PixelSource<'a> {
     /// Listed pixels ([`crate::prepare::Prepared::pixels`]), in any order.
     Listed(&'a [PixelRec]),
     /// Every pixel of a normal map whose normal passes [`is_foreground`], in image order.
     Map(&'a NormalMap, Camera),
 }
 
-impl Source<'_> {
+impl PixelSource<'_> {
     fn candidates(&self) -> usize {
         match self {
-            Source::Listed(p) => p.len(),
-            Source::Map(m, _) => m.normals.len(),
+            PixelSource::Listed(p) => p.len(),
+            PixelSource::Map(m, _) => m.normals.len(),
         }
     }
 
@@ -45,8 +45,8 @@ impl Source<'_> {
     /// background pixel. The same values as [`Pixel::new`] of [`PixelRec::new`].
     fn pixel(&self, i: usize) -> Option<(usize, Pixel)> {
         match *self {
-            Source::Listed(p) => Some((p[i].index, Pixel::new(&p[i], [0.0; 3]))),
-            Source::Map(m, camera) => {
+            PixelSource::Listed(p) => Some((p[i].index, Pixel::new(&p[i], [0.0; 3]))),
+            PixelSource::Map(m, camera) => {
                 let v = m.normals[i];
                 let n = [v[0] as f64, v[1] as f64, v[2] as f64];
                 if !is_foreground(n) {
@@ -58,12 +58,12 @@ impl Source<'_> {
         }
     }
 
-    /// Candidate `i`'s pixel index, or `None` for a background pixel ([`Source::pixel`]
+    /// Candidate `i`'s pixel index, or `None` for a background pixel ([`PixelSource::pixel`]
     /// without the record).
     fn index(&self, i: usize) -> Option<usize> {
         match *self {
-            Source::Listed(p) => Some(p[i].index),
-            Source::Map(m, _) => {
+            PixelSource::Listed(p) => Some(p[i].index),
+            PixelSource::Map(m, _) => {
                 let v = m.normals[i];
                 is_foreground([v[0] as f64, v[1] as f64, v[2] as f64]).then_some(i)
             }
@@ -73,13 +73,13 @@ impl Source<'_> {
     /// Whether a source's pixel indices increase with the candidates, chunk by chunk, so
     /// that chunks scatter to disjoint parts of the image.
     fn ordered(&self) -> bool {
-        matches!(self, Source::Map(..))
+        matches!(self, PixelSource::Map(..))
     }
 }
 
 /// The pixels a pass reads: per chunk of candidates, where its records start.
 pub struct Selection<'a> {
-    source: Source<'a>,
+    source: PixelSource<'a>,
     upstream: Option<&'a Image>,
     active_only: bool,
     starts: Vec<usize>,
@@ -89,7 +89,7 @@ pub struct Selection<'a> {
 impl<'a> Selection<'a> {
     /// The foreground pixels of `source`, with `upstream`'s gradient in their records;
     /// with `active_only`, only those whose gradient is non-zero.
-    pub fn new(source: Source<'a>, upstream: Option<&'a Image>, active_only: bool) -> Self {
+    pub fn new(source: PixelSource<'a>, upstream: Option<&'a Image>, active_only: bool) -> Self {
         let mut sel = Selection {
             source,
             upstream,
@@ -125,9 +125,9 @@ impl<'a> Selection<'a> {
     /// counts agree.
     pub fn key(&self) -> [usize; 4] {
         let (source, camera) = match self.source {
-            Source::Listed(p) => (p.as_ptr() as usize, usize::MAX),
-            Source::Map(m, Camera::Orthographic) => (m as *const NormalMap as usize, 0),
-            Source::Map(m, Camera::Perspective { fov_y_deg }) => {
+            PixelSource::Listed(p) => (p.as_ptr() as usize, usize::MAX),
+            PixelSource::Map(m, Camera::Orthographic) => (m as *const NormalMap as usize, 0),
+            PixelSource::Map(m, Camera::Perspective { fov_y_deg }) => {
                 (m as *const NormalMap as usize, fov_y_deg.to_bits() as usize)
             }
         };

@@ -67,7 +67,7 @@ impl Dispatch {
 /// The layout of one gather pass: `outer` records (one invocation each) against `inner`
 /// records (looped over).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Shape {
+pub struct GatherShape {
     /// Records with one invocation each.
     pub outer: usize,
     /// Records looped over.
@@ -98,7 +98,7 @@ fn ranges(n: usize, per: usize) -> Vec<Range<usize>> {
         .collect()
 }
 
-impl Shape {
+impl GatherShape {
     /// The outer ranges, in order (none for no records).
     pub fn outer_ranges(&self) -> Vec<Range<usize>> {
         ranges(self.outer, self.outer_range)
@@ -115,7 +115,7 @@ impl Shape {
     }
 
     /// Records per slice of a scene of `n` inner records in a batched dispatch: the length
-    /// it would get alone with [`Shape::slices`] asked for.
+    /// it would get alone with [`GatherShape::slices`] asked for.
     pub fn slice_len_of(&self, n: usize) -> u32 {
         n.div_ceil(self.slices as usize) as u32
     }
@@ -197,7 +197,7 @@ impl Planner {
     }
 
     /// The shape of gather pass `pass` over `outer` and `inner` records.
-    pub fn gather(&self, pass: Pass, outer: usize, inner: usize) -> Shape {
+    pub fn gather(&self, pass: Pass, outer: usize, inner: usize) -> GatherShape {
         let (outer_in, out, inner_in, chunk) = record_bytes(pass);
         let inner_range = match self.tiles {
             Tiles::Workgroup if self.software => {
@@ -218,7 +218,7 @@ impl Planner {
         let outer_range = self
             .max_records(outer_in)
             .min(self.max_records(out * slices as u64));
-        Shape {
+        GatherShape {
             outer,
             inner,
             outer_range,
@@ -243,9 +243,9 @@ impl Planner {
     /// `outer[z]` and `inner[z]` records of scene z, concatenated. `None` where the batch
     /// goes scene by scene: one scene, uniform chunks (a software adapter), or records or
     /// partial sums over one binding. Scene z's slices are as long as they would be were it
-    /// alone ([`Shape::slice_len_of`]); a scene with fewer leaves its last slices empty
+    /// alone ([`GatherShape::slice_len_of`]); a scene with fewer leaves its last slices empty
     /// (zeros, which its sum over slices adds exactly).
-    pub fn batch(&self, pass: Pass, outer: &[usize], inner: &[usize]) -> Option<Shape> {
+    pub fn batch(&self, pass: Pass, outer: &[usize], inner: &[usize]) -> Option<GatherShape> {
         let b = outer.len();
         if b < 2 || self.tiles == Tiles::Uniform || b > self.max_groups as usize {
             return None;
@@ -264,7 +264,7 @@ impl Planner {
             && total_out as u64 * out * asked as u64 <= limit
             && total_in as u64 * inner_in <= limit
             && max_out.div_ceil(WG) <= self.max_groups as usize;
-        let shape = Shape {
+        let shape = GatherShape {
             outer: total_out,
             inner: total_in,
             outer_range: total_out,

@@ -5,7 +5,7 @@
 use std::sync::MutexGuard;
 
 use super::buffers::{Entry, ParamsTable, Pool, Readback, Readout, Slot};
-use super::layout::{Params, Pixel};
+use super::layout::{DispatchParams, Pixel};
 use super::pipelines::Pass;
 use super::pixels::Selection;
 use super::plan::Dispatch;
@@ -161,7 +161,7 @@ impl<'a> Submission<'a> {
         self.upload("params", usage, &table.bytes)
     }
 
-    /// A bind group of `pass`'s layout: `scenes` [`Params`] of `params` at binding 0 (at a
+    /// A bind group of `pass`'s layout: `scenes` [`DispatchParams`] of `params` at binding 0 (at a
     /// dynamic offset), then each of `buffers` (buffer, offset, size or the rest) in order.
     pub fn bind(
         &mut self,
@@ -170,8 +170,12 @@ impl<'a> Submission<'a> {
         scenes: usize,
         buffers: &[(&wgpu::Buffer, u64, Option<u64>)],
     ) -> wgpu::BindGroup {
-        let mut entries: Vec<Entry<'_>> =
-            vec![(0, params, 0, Some((scenes * size_of::<Params>()) as u64))];
+        let mut entries: Vec<Entry<'_>> = vec![(
+            0,
+            params,
+            0,
+            Some((scenes * size_of::<DispatchParams>()) as u64),
+        )];
         entries.extend(
             buffers
                 .iter()
@@ -235,13 +239,13 @@ impl<'a> Submission<'a> {
     /// each); returns the buffer of the sums.
     pub fn reduce_slices(
         &mut self,
-        base: Params,
+        base: DispatchParams,
         parts: &wgpu::Buffer,
         elements: usize,
         slices: u32,
     ) -> wgpu::Buffer {
         let mut table = ParamsTable::default();
-        let offset = table.push(Params {
+        let offset = table.push(DispatchParams {
             n_pixels: elements as u32,
             n_slices: slices,
             ..base

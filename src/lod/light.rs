@@ -3,7 +3,7 @@
 //! the map's texels.
 
 use crate::envmap::EnvMap;
-use crate::prepare::{Light, dot};
+use crate::prepare::{PointLight, dot};
 
 /// The lights of a map under a block side and a number of kept texels.
 pub(crate) struct Lights {
@@ -13,9 +13,9 @@ pub(crate) struct Lights {
     pub cols: usize,
     /// One light per block, `index` = block row x `cols` + block column; kept texels are
     /// left out of their block's radiance but not of its solid angle.
-    pub blocks: Vec<Light>,
+    pub blocks: Vec<PointLight>,
     /// The kept texels, `index` = their index in the map.
-    pub kept: Vec<Light>,
+    pub kept: Vec<PointLight>,
     /// Per texel of the map: its block and d_omega(texel) / d_omega(block), the block
     /// radiance's derivative by the texel's (0 for kept texels).
     pub share: Vec<(u32, f64)>,
@@ -85,7 +85,7 @@ pub(crate) fn lights(env: &EnvMap, factor: usize, keep: usize) -> Lights {
                 a.dir[k] += dir[k] * d_omega;
             }
             if is_kept[i] {
-                kept.push(Light {
+                kept.push(PointLight {
                     index: i,
                     w: dir,
                     d_omega,
@@ -98,7 +98,7 @@ pub(crate) fn lights(env: &EnvMap, factor: usize, keep: usize) -> Lights {
             }
         }
     }
-    let blocks: Vec<Light> = acc
+    let blocks: Vec<PointLight> = acc
         .iter()
         .enumerate()
         .map(|(b, a)| {
@@ -119,7 +119,7 @@ pub(crate) fn lights(env: &EnvMap, factor: usize, keep: usize) -> Lights {
             } else {
                 [0.0; 3]
             };
-            Light {
+            PointLight {
                 index: b,
                 w,
                 d_omega: a.d_omega,

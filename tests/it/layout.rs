@@ -338,3 +338,108 @@ fn a_circle_is_found() {
     assert_eq!(problems.len(), 2, "{problems:?}");
     assert!(problems[0].contains("a -> b, b -> a"), "{problems:?}");
 }
+
+/// The repository's root.
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// Every `.rs` file under `dir` (relative to the root), sorted.
+fn rust_files(dir: &str) -> Vec<PathBuf> {
+    let base = root().join(dir);
+    let mut out = Vec::new();
+    let mut todo = vec![base];
+    while let Some(d) = todo.pop() {
+        for e in std::fs::read_dir(&d).expect("reads a source folder") {
+            let p = e.expect("an entry").path();
+            if p.is_dir() {
+                todo.push(p);
+            } else if p.extension().is_some_and(|e| e == "rs") {
+                out.push(p);
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+#[test]
+fn each_file_holds_one_idea() {
+    // a source file of the library, the command line or the Python bindings reads at one
+    // sitting; an example is a program a user copies whole
+    let mut long = Vec::new();
+    for (dir, most) in [("src", 500), ("python/src", 500), ("examples", 100)] {
+        for p in rust_files(dir) {
+            let n = std::fs::read_to_string(&p).expect("reads").lines().count();
+            if n > most {
+                long.push(format!("{}: {n} lines (at most {most})", p.display()));
+            }
+        }
+    }
+    assert!(long.is_empty(), "{}", long.join("\n"));
+}
+
+/// The types a library file makes public: (name, file) for each `pub struct`, `pub enum`,
+/// `pub trait` and `pub type`, unit tests left out.
+fn public_types(p: &Path) -> Vec<String> {
+    let mut out = Vec::new();
+    for line in code(p).lines() {
+        let t = line.trim_start();
+        for kind in ["pub struct ", "pub enum ", "pub trait ", "pub type "] {
+            if let Some(rest) = t.strip_prefix(kind) {
+                let name: String = rest.chars().take_while(|&c| is_ident(c)).collect();
+                out.push(name);
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn no_two_public_types_share_a_name() {
+    // a name in the library's API says which thing it is without its module's path
+    let src = root().join("src");
+    let mut seen: BTreeMap<String, Vec<String>> = BTreeMap::new();
+    for p in rust_files("src") {
+        let rel = p.strip_prefix(&src).expect("under src/");
+        if rel.starts_with("cli") || rel == Path::new("main.rs") {
+            continue;
+        }
+        for name in public_types(&p) {
+            seen.entry(name).or_default().push(rel.display().to_string());
+        }
+    }
+    let twice: Vec<String> = seen
+        .iter()
+        .filter(|(_, files)| files.len() > 1)
+        .map(|(name, files)| format!("{name}: {}", files.join(", ")))
+        .collect();
+    assert!(twice.is_empty(), "public types of one name:\n{}", twice.join("\n"));
+}
+
+#[test]
+fn io_reads_and_writes_formats() {
+    // io/ turns files into the scene types and back: it imports the scene types, the error,
+    // the math beneath them and the built-in materials' names (a manifest names presets),
+    // never what renders, edits, synthesises or runs the command line
+    let allowed = [
+        "camera", "envmap", "error", "io", "material", "normals", "presets", "raster", "scene",
+        "spline",
+    ];
+    let src = root().join("src");
+    let mut all = Vec::new();
+    modules(&src, &src, &mut all);
+    let files: BTreeMap<Module, PathBuf> = all
+        .into_iter()
+        .filter(|(m, p)| !p.ends_with("main.rs") && m.first().map(String::as_str) != Some("cli"))
+        .collect();
+    let tree = Tree::new(files);
+    let wrong: Vec<String> = tree
+        .edges()
+        .into_iter()
+        .filter(|(a, b)| a.first().map(String::as_str) == Some("io") && !b.is_empty())
+        .filter(|(_, b)| !allowed.contains(&b[0].as_str()))
+        .map(|(a, b)| format!("{} -> {}", name(&a), name(&b)))
+        .collect();
+    assert!(wrong.is_empty(), "io imports beyond formats:\n{}", wrong.join("\n"));
+}

@@ -27,8 +27,8 @@ mod shaders;
 mod stability;
 mod wanted;
 // levels of detail and the continuous light
+mod continuous_light;
 mod lod;
-mod supersample;
 // inputs: files, shapes, lights, validation
 mod envgen;
 mod io;

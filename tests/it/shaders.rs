@@ -4,7 +4,7 @@
 use std::mem::{offset_of, size_of};
 
 use matedit::cpu::math::EXP2M1_Q;
-use matedit::gpu::layout::{PIXEL_CHUNK, Params, Pixel, TEXEL_CHUNK, Texel, WG};
+use matedit::gpu::layout::{DispatchParams, PIXEL_CHUNK, Pixel, TEXEL_CHUNK, Texel, WG};
 use matedit::gpu::{Pass, Tiles};
 
 fn module(pass: Pass) -> naga::Module {
@@ -106,22 +106,22 @@ fn shared_structs_match_rust_layout() {
     check(
         "Params",
         &[
-            ("n_pixels", offset_of!(Params, n_pixels)),
-            ("n_texels", offset_of!(Params, n_texels)),
-            ("first", offset_of!(Params, first)),
-            ("perspective", offset_of!(Params, perspective)),
-            ("n_lobes", offset_of!(Params, n_lobes)),
-            ("n_const", offset_of!(Params, n_const)),
-            ("slice_len", offset_of!(Params, slice_len)),
-            ("n_slices", offset_of!(Params, n_slices)),
-            ("pixel_base", offset_of!(Params, pixel_base)),
-            ("texel_base", offset_of!(Params, texel_base)),
-            ("slice_stride", offset_of!(Params, slice_stride)),
-            ("_pad", offset_of!(Params, _pad)),
-            ("cc", offset_of!(Params, cc)),
-            ("lc", offset_of!(Params, lc)),
+            ("n_pixels", offset_of!(DispatchParams, n_pixels)),
+            ("n_texels", offset_of!(DispatchParams, n_texels)),
+            ("first", offset_of!(DispatchParams, first)),
+            ("perspective", offset_of!(DispatchParams, perspective)),
+            ("n_lobes", offset_of!(DispatchParams, n_lobes)),
+            ("n_const", offset_of!(DispatchParams, n_const)),
+            ("slice_len", offset_of!(DispatchParams, slice_len)),
+            ("n_slices", offset_of!(DispatchParams, n_slices)),
+            ("pixel_base", offset_of!(DispatchParams, pixel_base)),
+            ("texel_base", offset_of!(DispatchParams, texel_base)),
+            ("slice_stride", offset_of!(DispatchParams, slice_stride)),
+            ("_pad", offset_of!(DispatchParams, _pad)),
+            ("cc", offset_of!(DispatchParams, cc)),
+            ("lc", offset_of!(DispatchParams, lc)),
         ],
-        size_of::<Params>(),
+        size_of::<DispatchParams>(),
     );
     check(
         "Texel",

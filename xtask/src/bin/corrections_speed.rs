@@ -8,8 +8,8 @@
 
 use std::time::Instant;
 
+use matedit::continuous_light::Corrections;
 use matedit::prepare::Prepared;
-use matedit::supersample::Corrections;
 use matedit::{Backend, Camera, Convention, NormalMap, Scene, builtin_sky};
 
 fn median(mut v: Vec<f64>) -> f64 {

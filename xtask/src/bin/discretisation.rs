@@ -14,9 +14,9 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use matedit::continuous_light::{self, Integration};
 use matedit::io::png::{Preview, encode_preview};
 use matedit::io::resample::downsample;
-use matedit::supersample::{self, Light};
 use matedit::{
     Accuracy, Batch, Camera, Convention, Device, EnvMap, Image, NormalMap, Renderer, Scene,
     builtin_sky, io, lod, presets,
@@ -92,18 +92,18 @@ fn run() -> Result<(), String> {
             let base = batch_of(&maps[0])?;
             // the sub-texels' radiance from the 16x map (as the CLI does), or constant
             let detail = [Some(maps[2].clone())];
-            let light_run = |l: Light| -> Run {
+            let light_run = |l: Integration| -> Run {
                 let detail = detail.clone();
                 Box::new(move |r, b| {
-                    supersample::render(r, b, &Accuracy::Exact, l, &detail)
+                    continuous_light::render(r, b, &Accuracy::Exact, l, &detail)
                         .expect("renders")
                         .0
                         .remove(0)
                 })
             };
-            let constant_run = |l: Light| -> Run {
+            let constant_run = |l: Integration| -> Run {
                 Box::new(move |r, b| {
-                    supersample::render(r, b, &Accuracy::Exact, l, &[])
+                    continuous_light::render(r, b, &Accuracy::Exact, l, &[])
                         .expect("renders")
                         .0
                         .remove(0)
@@ -117,37 +117,37 @@ fn run() -> Result<(), String> {
                 (
                     "discrete",
                     "discrete (the layer)".into(),
-                    light_run(Light::Discrete),
+                    light_run(Integration::Discrete),
                 ),
                 (
                     "light",
                     "--supersample 1".into(),
-                    light_run(Light::Level(1)),
+                    light_run(Integration::Level(1)),
                 ),
                 (
                     "light",
                     "--supersample 2".into(),
-                    light_run(Light::Level(2)),
+                    light_run(Integration::Level(2)),
                 ),
                 (
                     "light",
                     "--supersample 4".into(),
-                    light_run(Light::Level(4)),
+                    light_run(Integration::Level(4)),
                 ),
                 (
                     "constant",
                     "--supersample 2, radiance constant per texel".into(),
-                    constant_run(Light::Level(2)),
+                    constant_run(Integration::Level(2)),
                 ),
                 (
                     "light",
                     "--light-tolerance 1e-2".into(),
-                    light_run(Light::Tolerance(1e-2)),
+                    light_run(Integration::Tolerance(1e-2)),
                 ),
                 (
                     "light",
                     "--light-tolerance 1e-3".into(),
-                    light_run(Light::Tolerance(1e-3)),
+                    light_run(Integration::Tolerance(1e-3)),
                 ),
             ];
             for m in ["env2", "table64+keep16", "table128+keep16"] {
@@ -323,10 +323,13 @@ fn default_crop(renderer: &Renderer, path: &Path) -> Result<(), String> {
         128 * f,
         Convention::Equirect,
     ))];
-    for light in [Light::Discrete, Light::Level(builtin_sky::LIGHT_LEVEL)] {
+    for light in [
+        Integration::Discrete,
+        Integration::Level(builtin_sky::LIGHT_LEVEL),
+    ] {
         let start = Instant::now();
         let (mut images, _) =
-            supersample::render(renderer, &batch, &Accuracy::Exact, light, &detail)
+            continuous_light::render(renderer, &batch, &Accuracy::Exact, light, &detail)
                 .map_err(|e| e.to_string())?;
         eprintln!(
             "default scene, {light:?}: {:.2} s",

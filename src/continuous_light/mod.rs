@@ -43,7 +43,7 @@ const SAFETY: f64 = 2.0;
 
 /// How the light is integrated.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub enum Light {
+pub enum Integration {
     /// The layer: each texel a point light.
     #[default]
     Discrete,
@@ -55,17 +55,17 @@ pub enum Light {
     Tolerance(f64),
 }
 
-impl Light {
+impl Integration {
     /// Checks the value and that the scene's map has solid angles to split.
     pub fn validate(&self, scene: &Scene) -> Result<()> {
         match *self {
-            Light::Discrete | Light::Level(0) => return Ok(()),
-            Light::Level(q) if q > MAX_LEVEL => {
+            Integration::Discrete | Integration::Level(0) => return Ok(()),
+            Integration::Level(q) if q > MAX_LEVEL => {
                 return Err(Error::Invalid(format!(
                     "light: level {q} is above {MAX_LEVEL}"
                 )));
             }
-            Light::Tolerance(t) if !(t.is_finite() && t > 0.0) => {
+            Integration::Tolerance(t) if !(t.is_finite() && t > 0.0) => {
                 return Err(Error::Invalid(format!(
                     "light: tolerance {t} is not a positive number"
                 )));
@@ -85,7 +85,7 @@ impl Light {
 
 /// The level a scene got and why.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Choice {
+pub struct LevelChoice {
     /// The level (0: the layer).
     pub level: u32,
     /// The measured difference from the finest level, max over max, on the sample (0 for
@@ -97,7 +97,7 @@ pub struct Choice {
     pub tolerance: f64,
 }
 
-impl std::fmt::Display for Choice {
+impl std::fmt::Display for LevelChoice {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let what = if self.level == 0 {
             "discrete (each texel a point light)".to_string()
@@ -138,8 +138,8 @@ pub fn choose(
     scene: &Scene,
     detail: Option<&EnvMap>,
     tol: f64,
-) -> Result<Choice> {
-    Light::Tolerance(tol).validate(scene)?;
+) -> Result<LevelChoice> {
+    Integration::Tolerance(tol).validate(scene)?;
     if let Some(d) = detail {
         check_detail(&scene.env, d)?;
     }
@@ -170,7 +170,7 @@ pub fn choose(
         let image = if q == 0 { base.clone() } else { at(q)? };
         let estimate = relative(&image.pixels, &reference.pixels);
         if SAFETY * estimate <= tol {
-            return Ok(Choice {
+            return Ok(LevelChoice {
                 level: q,
                 estimate,
                 sampled,
@@ -178,7 +178,7 @@ pub fn choose(
             });
         }
     }
-    Ok(Choice {
+    Ok(LevelChoice {
         level: finest,
         estimate: 0.0,
         sampled,
@@ -238,9 +238,9 @@ fn sample_positions(prep: &Prepared, env: &EnvMap) -> Vec<usize> {
 fn levels(
     backend: &dyn Backend,
     batch: &Batch,
-    light: Light,
+    light: Integration,
     details: &[Option<EnvMap>],
-) -> Result<Vec<(u32, Option<Choice>)>> {
+) -> Result<Vec<(u32, Option<LevelChoice>)>> {
     batch
         .scenes()
         .iter()
@@ -252,9 +252,9 @@ fn levels(
                 check_detail(&s.env, d)?;
             }
             Ok(match light {
-                Light::Discrete => (0, None),
-                Light::Level(q) => (q, None),
-                Light::Tolerance(t) => {
+                Integration::Discrete => (0, None),
+                Integration::Level(q) => (q, None),
+                Integration::Tolerance(t) => {
                     let c = choose(backend, s, detail, t)?;
                     (c.level, Some(c))
                 }
@@ -269,7 +269,7 @@ fn detail_of(details: &[Option<EnvMap>], b: usize) -> Option<&EnvMap> {
 }
 
 /// What [`render`] and [`backward`] chose per scene: the level of detail and the light.
-pub type Choices = (Vec<Option<lod::Choice>>, Vec<Option<Choice>>);
+pub type Choices = (Vec<Option<lod::Choice>>, Vec<Option<LevelChoice>>);
 
 /// One image per scene under `accuracy` (the levels of detail) and `light`: the layer's
 /// image plus each scene's corrections. `details`: per scene, a finer map of its light
@@ -278,7 +278,7 @@ pub fn render(
     renderer: &Renderer,
     batch: &Batch,
     accuracy: &Accuracy,
-    light: Light,
+    light: Integration,
     details: &[Option<EnvMap>],
 ) -> Result<(Vec<Image>, Choices)> {
     let levels = levels(renderer.backend(), batch, light, details)?;
@@ -305,7 +305,7 @@ pub fn backward(
     batch: &Batch,
     upstream: &[Image],
     accuracy: &Accuracy,
-    light: Light,
+    light: Integration,
     wanted: Wanted,
     details: &[Option<EnvMap>],
 ) -> Result<(Vec<Gradients>, Choices)> {

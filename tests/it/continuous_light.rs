@@ -1,11 +1,11 @@
-//! The continuous light (`matedit::supersample`): level 0 and diffuse materials are the
+//! The continuous light (`matedit::continuous_light`): level 0 and diffuse materials are the
 //! layer bit for bit, the corrections converge towards the map's texels as area lights
 //! (the map refined uniformly, each texel s x s copies), a tolerance is met there, and the
 //! gradients are the adjoint (linearity in L, finite differences in a control point).
 
 use crate::common;
 
-use matedit::supersample::{self, Light};
+use matedit::continuous_light::{self, Integration};
 use matedit::{
     Accuracy, Batch, Camera, Convention, Device, EnvMap, Image, NormalMap, Renderer, Scene, Wanted,
     builtin_sky, presets,
@@ -34,15 +34,15 @@ fn refined(env: &EnvMap, s: usize) -> EnvMap {
     EnvMap::new(env.height * s, w, env.convention, texels).expect("valid")
 }
 
-fn render(r: &Renderer, b: &Batch, light: Light) -> Image {
-    supersample::render(r, b, &Accuracy::Exact, light, &[])
+fn render(r: &Renderer, b: &Batch, light: Integration) -> Image {
+    continuous_light::render(r, b, &Accuracy::Exact, light, &[])
         .expect("renders")
         .0
         .remove(0)
 }
 
-fn backward(r: &Renderer, b: &Batch, up: &Image, light: Light) -> matedit::Gradients {
-    supersample::backward(
+fn backward(r: &Renderer, b: &Batch, up: &Image, light: Integration) -> matedit::Gradients {
+    continuous_light::backward(
         r,
         b,
         std::slice::from_ref(up),
@@ -80,14 +80,14 @@ fn level_zero_and_diffuse_are_the_layer_bitwise() {
     let r = Renderer::new(Device::Cpu).unwrap();
     let b = scene("red-specular-plastic", sky());
     let layer = r.render(&b).unwrap().remove(0);
-    assert_eq!(render(&r, &b, Light::Level(0)), layer);
-    assert_eq!(render(&r, &b, Light::Discrete), layer);
+    assert_eq!(render(&r, &b, Integration::Level(0)), layer);
+    assert_eq!(render(&r, &b, Integration::Discrete), layer);
     // a diffuse material: the measurement finds nothing to gain
     let b = scene("matte-white", sky());
-    let c = supersample::choose(r.backend(), &b.scenes()[0], None, 1e-4).unwrap();
+    let c = continuous_light::choose(r.backend(), &b.scenes()[0], None, 1e-4).unwrap();
     assert_eq!(c.level, 0, "{c}");
     assert_eq!(
-        render(&r, &b, Light::Tolerance(1e-4)),
+        render(&r, &b, Integration::Tolerance(1e-4)),
         r.render(&b).unwrap().remove(0)
     );
 }
@@ -102,7 +102,7 @@ fn converges_to_the_area_lights_and_meets_the_tolerance() {
         .unwrap()
         .remove(0);
     let errs: Vec<f64> = [0, 1, 2, 4]
-        .map(|q| rel(&render(&r, &b, Light::Level(q)), &truth))
+        .map(|q| rel(&render(&r, &b, Integration::Level(q)), &truth))
         .to_vec();
     // measured: 0.52, then 0.063 at every level (a 16 x 32 map: every lobe split at the
     // largest split, 8)
@@ -114,8 +114,8 @@ fn converges_to_the_area_lights_and_meets_the_tolerance() {
     }
     assert!(errs[3] < errs[0] / 5.0, "{errs:?}");
     let tol = 1e-1;
-    let c = supersample::choose(r.backend(), &b.scenes()[0], None, tol).unwrap();
-    let e = rel(&render(&r, &b, Light::Tolerance(tol)), &truth);
+    let c = continuous_light::choose(r.backend(), &b.scenes()[0], None, tol).unwrap();
+    let e = rel(&render(&r, &b, Integration::Tolerance(tol)), &truth);
     assert!(c.level > 0 && e <= tol, "{c}: error {e}");
 }
 
@@ -123,7 +123,7 @@ fn converges_to_the_area_lights_and_meets_the_tolerance() {
 fn gradients_are_the_adjoint() {
     let r = Renderer::new(Device::Reference).unwrap();
     let b = scene("red-specular-plastic", sky());
-    let light = Light::Level(2);
+    let light = Integration::Level(2);
     let n = 40 * 40;
     let up = Image {
         width: 40,
@@ -167,15 +167,16 @@ fn bad_values_are_errors() {
     let mut s = scene("clay", sky()).scenes()[0].clone();
     s.env.convention = Convention::Paper;
     let b = Batch::single(s).unwrap();
-    let e = supersample::render(&r, &b, &Accuracy::Exact, Light::Level(2), &[]).unwrap_err();
+    let e =
+        continuous_light::render(&r, &b, &Accuracy::Exact, Integration::Level(2), &[]).unwrap_err();
     assert!(e.to_string().contains("equirect"), "{e}");
     let b = scene("clay", sky());
     for light in [
-        Light::Level(65),
-        Light::Tolerance(0.0),
-        Light::Tolerance(f64::NAN),
+        Integration::Level(65),
+        Integration::Tolerance(0.0),
+        Integration::Tolerance(f64::NAN),
     ] {
-        let e = supersample::render(&r, &b, &Accuracy::Exact, light, &[]).unwrap_err();
+        let e = continuous_light::render(&r, &b, &Accuracy::Exact, light, &[]).unwrap_err();
         assert!(e.to_string().starts_with("light: "), "{e}");
     }
 }
@@ -196,13 +197,13 @@ fn with_a_finer_map_the_continuous_light_approaches_it() {
         .remove(0);
     let detail = [Some(fine)];
     let with = |q| {
-        supersample::render(&r, &b, &Accuracy::Exact, Light::Level(q), &detail)
+        continuous_light::render(&r, &b, &Accuracy::Exact, Integration::Level(q), &detail)
             .unwrap()
             .0
             .remove(0)
     };
-    let layer = rel(&render(&r, &b, Light::Discrete), &truth);
-    let constant = rel(&render(&r, &b, Light::Level(4)), &truth);
+    let layer = rel(&render(&r, &b, Integration::Discrete), &truth);
+    let constant = rel(&render(&r, &b, Integration::Level(4)), &truth);
     let (e1, e4) = (rel(&with(1), &truth), rel(&with(4), &truth));
     assert!(
         e4 < 0.5 * layer && e4 < 0.5 * constant,
@@ -215,7 +216,8 @@ fn with_a_finer_map_the_continuous_light_approaches_it() {
         96,
         Convention::Equirect,
     ))];
-    let e = supersample::render(&r, &b, &Accuracy::Exact, Light::Level(2), &bad).unwrap_err();
+    let e = continuous_light::render(&r, &b, &Accuracy::Exact, Integration::Level(2), &bad)
+        .unwrap_err();
     assert!(e.to_string().contains("does not refine"), "{e}");
 }
 
@@ -229,8 +231,8 @@ fn gradients_with_a_detail_map_are_the_adjoint() {
         64,
         Convention::Equirect,
     ))];
-    let light = Light::Level(2);
-    let image = supersample::render(&r, &b, &Accuracy::Exact, light, &detail)
+    let light = Integration::Level(2);
+    let image = continuous_light::render(&r, &b, &Accuracy::Exact, light, &detail)
         .unwrap()
         .0
         .remove(0);
@@ -242,7 +244,7 @@ fn gradients_with_a_detail_map_are_the_adjoint() {
             .collect(),
     };
     let loss = inner(&image.pixels, &up.pixels);
-    let g = supersample::backward(
+    let g = continuous_light::backward(
         &r,
         &b,
         std::slice::from_ref(&up),
@@ -280,15 +282,15 @@ fn a_chosen_level_is_within_its_tolerance_of_the_finest_on_every_pixel() {
         })
         .unwrap();
         let level = |q| {
-            supersample::render(&r, &b, &Accuracy::Exact, Light::Level(q), &detail)
+            continuous_light::render(&r, &b, &Accuracy::Exact, Integration::Level(q), &detail)
                 .unwrap()
                 .0
                 .remove(0)
         };
-        let finest = level(supersample::LEVELS[supersample::LEVELS.len() - 1]);
+        let finest = level(continuous_light::LEVELS[continuous_light::LEVELS.len() - 1]);
         for tol in [1e-2, 1e-3] {
-            let c =
-                supersample::choose(r.backend(), &b.scenes()[0], detail[0].as_ref(), tol).unwrap();
+            let c = continuous_light::choose(r.backend(), &b.scenes()[0], detail[0].as_ref(), tol)
+                .unwrap();
             let e = rel(&level(c.level), &finest);
             assert!(
                 e <= tol,
@@ -317,7 +319,7 @@ fn inner(a: &[[f32; 3]], b: &[[f32; 3]]) -> f64 {
 #[test]
 fn every_backend_gives_the_references_corrections() {
     let b = scene("red-specular-plastic", sky());
-    let light = Light::Level(2);
+    let light = Integration::Level(2);
     let up = Image {
         width: 40,
         height: 40,

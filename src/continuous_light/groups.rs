@@ -11,7 +11,7 @@ use rayon::prelude::*;
 use crate::Backend;
 use crate::envmap::{Convention, EnvMap};
 use crate::error::{Error, Result};
-use crate::prepare::{self, Light, PixelRec, Prepared};
+use crate::prepare::{self, PixelRec, PointLight, Prepared};
 use crate::scene::{Gradients, Image, Wanted};
 
 /// Largest split of a texel per axis.
@@ -161,7 +161,7 @@ fn group(
         let l = env.texels[i].map(f64::from);
         let shares = detail.map(|d| shares(d, env.height, r, c, s));
         let (w, d_omega) = Convention::Equirect.texel(r, c, env.height, env.width);
-        point.push(Light {
+        point.push(PointLight {
             index: ss + t,
             w,
             d_omega,
@@ -173,7 +173,7 @@ fn group(
                     Convention::Equirect.texel(r * s + a, c * s + b, env.height * s, env.width * s);
                 let share = shares.as_ref().map_or([1.0; 3], |v| v[a * s + b]);
                 rho.push(share.map(|x| x as f32));
-                area.push(Light {
+                area.push(PointLight {
                     index: (t * s + a) * s + b,
                     w,
                     d_omega,
