@@ -34,12 +34,12 @@
 //! - what uses the renderer: [`edit`] (a material fitted to an image), [`synth`]
 //!   (datasets), [`fit_brdf`] (the DSBRDF fitted to measured [`brdf`]s), [`io`] (files in and
 //!   out), [`continuous_light`] (the continuous light);
-//! - [`renderer`]: [`Device`], [`Renderer`], [`Accuracy`];
+//! - the renderer: [`Device`], [`Renderer`], [`Accuracy`];
 //! - [`lod`]: levels of detail, on any backend;
 //! - the backends: [`gpu`], [`cpu`], [`reference`](mod@reference);
-//! - beneath them: [`backend`] (the [`Backend`] trait) and [`prepare`] (prepared scenes);
+//! - beneath them: the [`Backend`] trait over [`Scenes`], and [`prepare`] (prepared scenes);
 //! - on images: [`raster`] (bilinear lookups, box filters, crops, blurs);
-//! - scene types: [`scene`], [`normals`], [`material`], [`envmap`], [`camera`];
+//! - scene types: [`scene`] (with the [`NormalMap`]), [`material`], [`envmap`], [`camera`];
 //!   built-in inputs: [`presets`], [`builtin_sky`]; procedural lights: [`envgen`];
 //! - at the bottom: [`error`], [`spline`], [`splitmix`].
 
@@ -48,7 +48,7 @@
     reason = "loops mirror the WGSL shaders index for index"
 )]
 
-pub mod backend;
+mod backend;
 pub mod brdf;
 pub mod builtin_sky;
 pub mod camera;
@@ -64,12 +64,12 @@ pub mod io;
 pub mod lod;
 pub mod material;
 pub mod nets;
-pub mod normals;
+mod normals;
 pub mod prepare;
 pub mod presets;
 pub mod raster;
 pub mod reference;
-pub mod renderer;
+mod renderer;
 pub mod scene;
 #[cfg(feature = "serve")]
 pub mod serve;
@@ -78,7 +78,7 @@ pub mod spline;
 pub mod splitmix;
 pub mod synth;
 
-pub use backend::{Backend, Jacobian, PassTiming};
+pub use backend::{Backend, Jacobian, PassTiming, Scenes};
 pub use camera::Camera;
 pub use envmap::{Convention, EnvMap};
 pub use error::{Error, Result};
