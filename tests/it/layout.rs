@@ -406,7 +406,9 @@ fn no_two_public_types_share_a_name() {
             continue;
         }
         for name in public_types(&p) {
-            seen.entry(name).or_default().push(rel.display().to_string());
+            seen.entry(name)
+                .or_default()
+                .push(rel.display().to_string());
         }
     }
     let twice: Vec<String> = seen
@@ -414,7 +416,11 @@ fn no_two_public_types_share_a_name() {
         .filter(|(_, files)| files.len() > 1)
         .map(|(name, files)| format!("{name}: {}", files.join(", ")))
         .collect();
-    assert!(twice.is_empty(), "public types of one name:\n{}", twice.join("\n"));
+    assert!(
+        twice.is_empty(),
+        "public types of one name:\n{}",
+        twice.join("\n")
+    );
 }
 
 #[test]
@@ -441,5 +447,9 @@ fn io_reads_and_writes_formats() {
         .filter(|(_, b)| !allowed.contains(&b[0].as_str()))
         .map(|(a, b)| format!("{} -> {}", name(&a), name(&b)))
         .collect();
-    assert!(wrong.is_empty(), "io imports beyond formats:\n{}", wrong.join("\n"));
+    assert!(
+        wrong.is_empty(),
+        "io imports beyond formats:\n{}",
+        wrong.join("\n")
+    );
 }

@@ -1,4 +1,4 @@
-//! A minimal HTTP/1.1 client over std's TcpStream for `matedit serve` (tests/it/serve.rs and
+//! A minimal HTTP/1.1 client over std's TcpStream for `matedit serve` (tests/it/serve/ and
 //! xtask/src/bin/serve_load.rs): one request per connection, read to the end, chunked bodies
 //! (server-sent events) decoded.
 #![allow(dead_code)]
