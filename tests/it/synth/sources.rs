@@ -1,0 +1,135 @@
+//! Shapes, procedural lights and meshes as sources of a spec.
+
+use matedit::synth;
+
+use super::{data, dir, foreground, synth_cmd};
+
+#[test]
+fn shapes_and_procedural_lights_are_sources_and_shards_agree() {
+    // procedural shapes (parameters and rotation drawn per sample) and procedural lights
+    // (parameters drawn per sample), perspective: the shards write the whole run's bytes
+    let t = dir();
+    let spec = t.path().join("spec.json");
+    std::fs::write(
+        &spec,
+        r#"{"count": 6, "seed": 3, "image_size": 24, "env_size": "16x32", "chunk_size": 2,
+           "fov": 40,
+           "normals": [{"shape": "blobby"}, {"shape": "union"}],
+           "envs": [{"procedural": "sun-sky"}, {"procedural": "studio"}],
+           "materials": [{"preset": "gold"}]}"#,
+    )
+    .unwrap();
+    let whole = t.path().join("whole");
+    synth_cmd(&spec, &whole, &[]).assert().success();
+    let split = t.path().join("split");
+    for i in [1, 0, 2] {
+        synth_cmd(&spec, &split, &["--shard", &format!("{i}/3")])
+            .assert()
+            .success();
+    }
+    assert!(data(&whole) == data(&split), "the shards wrote other bytes");
+    let sp = synth::Spec::load(&spec).unwrap();
+    let (mut shapes, mut lights) = (Vec::new(), Vec::new());
+    for k in 0..6 {
+        let x = sp.sample(k).unwrap();
+        assert!(x.params["normals"]["shape_seed"].is_u64(), "{}", x.params);
+        assert!(x.params["normals"]["rotation"].is_array());
+        assert!(x.params["env"]["procedural"].is_string());
+        // some pixels are the object and some background
+        let fg = foreground(&x.scene.normals);
+        assert!(
+            fg > 24 && fg < 24 * 24,
+            "sample {k}: {fg} foreground pixels"
+        );
+        assert!(
+            x.scene
+                .env
+                .texels
+                .iter()
+                .flatten()
+                .all(|v| v.is_finite() && *v >= 0.0)
+        );
+        shapes.push(x.scene.normals.normals.clone());
+        lights.push(x.scene.env.texels.clone());
+    }
+    // each sample its own draw
+    assert!(shapes.windows(2).all(|w| w[0] != w[1]));
+    assert!(lights.windows(2).all(|w| w[0] != w[1]));
+    // bad kinds: one line naming the item
+    for (key, value, expect) in [
+        ("normals", r#"[{"shape": "blobb"}]"#, "normals[0]: shape:"),
+        (
+            "envs",
+            r#"[{"procedural": "sunny"}]"#,
+            "envs[0]: procedural:",
+        ),
+    ] {
+        let mut v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&spec).unwrap()).unwrap();
+        v[key] = serde_json::from_str(value).unwrap();
+        let bad = t.path().join("bad.json");
+        std::fs::write(&bad, v.to_string()).unwrap();
+        let o = synth_cmd(&bad, &t.path().join("bad"), &[])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        assert!(err.contains(expect), "{err}");
+        assert_eq!(err.trim().lines().count(), 1, "{err}");
+    }
+}
+
+#[test]
+fn meshes_are_a_source_turned_per_sample() {
+    // a folder of two small meshes (a tetrahedron as OBJ, the same as OFF): each sample
+    // picks one and turns it; shards agree with the whole run; a bad mesh names the item
+    let t = dir();
+    let meshes = t.path().join("meshes");
+    std::fs::create_dir_all(&meshes).unwrap();
+    std::fs::write(
+        meshes.join("tet.obj"),
+        "v 1 1 1\nv -1 -1 1\nv -1 1 -1\nv 1 -1 -1\nf 1 2 3\nf 1 4 2\nf 1 3 4\nf 2 4 3\n",
+    )
+    .unwrap();
+    std::fs::write(
+        meshes.join("tet.off"),
+        "OFF\n4 4 0\n1 1 1\n-1 -1 1\n-1 1 -1\n1 -1 -1\n3 0 1 2\n3 0 3 1\n3 0 2 3\n3 1 3 2\n",
+    )
+    .unwrap();
+    let spec = t.path().join("spec.json");
+    let body = |normals: &str| {
+        format!(
+            r#"{{"count": 4, "seed": 5, "image_size": 20, "env_size": "8x16", "chunk_size": 2,
+               "normals": [{normals}], "envs": [{{"procedural": "overcast"}}],
+               "materials": [{{"preset": "gold"}}]}}"#
+        )
+    };
+    std::fs::write(&spec, body(r#"{"mesh": "meshes"}"#)).unwrap();
+    let whole = t.path().join("whole");
+    synth_cmd(&spec, &whole, &[]).assert().success();
+    let split = t.path().join("split");
+    for i in [1, 0] {
+        synth_cmd(&spec, &split, &["--shard", &format!("{i}/2")])
+            .assert()
+            .success();
+    }
+    assert!(data(&whole) == data(&split), "the shards wrote other bytes");
+    let sp = synth::Spec::load(&spec).unwrap();
+    for k in 0..4 {
+        let x = sp.sample(k).unwrap();
+        let label = x.params["normals"]["mesh"].as_str().unwrap().to_string();
+        assert!(label.starts_with("meshes/tet."), "{label}");
+        let fg = foreground(&x.scene.normals);
+        assert!(fg > 20, "sample {k}: {fg} foreground pixels");
+    }
+    std::fs::write(meshes.join("bad.obj"), "v 0 0 0\nf 1 2 3\n").unwrap();
+    let o = synth_cmd(&spec, &t.path().join("bad"), &[])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("normals[0]") && err.contains("bad.obj"),
+        "{err}"
+    );
+}
