@@ -2,8 +2,9 @@
 //! upstream gradient), errors, and the files and processes of the peers
 //! (../shared/peers/time_peers.py).
 //!
-//! Each bench is its own crate and uses part of this module (`mod common;`), so items one
-//! of them leaves unused are expected.
+//! Each bench is its own crate (benches/NAME/main.rs) and uses part of this module
+//! (`#[path = "../common/mod.rs"] mod common;`), so items one of them leaves unused are
+//! expected.
 
 #![allow(dead_code, reason = "each bench uses a part of the shared code")]
 
