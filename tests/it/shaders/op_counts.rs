@@ -1,185 +1,18 @@
-//! Every WGSL module, as assembled, parses and validates with naga; every struct and
-//! constant shared with Rust has the same layout and value on both sides. No GPU needed.
+//! Operations per lit pair, from naga's IR of each gather pass as assembled (workgroup
+//! tiles), orthographic camera, 3 active lobes: the statements of the orthographic pair loop
+//! (the first loop inside the tile loop: the `perspective == 0` branch comes first), with
+//! every call inlined and every loop inside it (the lobe loop) counted 3 times. Each
+//! expression counts once per component of its result (dot: once per component of its
+//! operands), a float add or subtract of a product used nowhere else counts with that
+//! product as one fused multiply-add; swizzles, accesses, constructors and literals are free.
+//! Branches: the path takes the costlier side of each (what follows a side that returns,
+//! breaks or continues is not on that side's path), except, for grey lobes, the branches on
+//! what the channels share (`shared_*`), where it takes the cheaper; "all" adds both sides
+//! of every branch. Loads from memory (the tile, the parameters) are counted apart; integer
+//! operations are mostly the IR's index arithmetic, which a backend compiler folds.
 
-use std::mem::{offset_of, size_of};
-
-use matedit::cpu::math::EXP2M1_Q;
-use matedit::gpu::layout::{DispatchParams, PIXEL_CHUNK, Pixel, TEXEL_CHUNK, Texel, WG};
+use super::validated;
 use matedit::gpu::{Pass, Tiles};
-
-fn module(pass: Pass) -> naga::Module {
-    module_with(pass, Tiles::Workgroup)
-}
-
-fn module_with(pass: Pass, tiles: Tiles) -> naga::Module {
-    validated(pass, tiles).0
-}
-
-/// The module of `pass` on `tiles`, and naga's analysis of it (expression types, uses).
-fn validated(pass: Pass, tiles: Tiles) -> (naga::Module, naga::valid::ModuleInfo) {
-    let src = pass.source(tiles);
-    let module = naga::front::wgsl::parse_str(&src)
-        .unwrap_or_else(|e| panic!("{}: {}", pass.name(), e.emit_to_string(&src)));
-    let info = naga::valid::Validator::new(
-        naga::valid::ValidationFlags::all(),
-        naga::valid::Capabilities::empty(),
-    )
-    .validate(&module)
-    .unwrap_or_else(|e| panic!("{}: {}", pass.name(), e.emit_to_string(&src)));
-    (module, info)
-}
-
-/// (member name, offset) and span of the WGSL struct `name`.
-fn wgsl_struct(m: &naga::Module, name: &str) -> (Vec<(String, u32)>, u32) {
-    for (_, ty) in m.types.iter() {
-        if ty.name.as_deref() == Some(name)
-            && let naga::TypeInner::Struct { members, span } = &ty.inner
-        {
-            return (
-                members
-                    .iter()
-                    .map(|mb| (mb.name.clone().unwrap_or_default(), mb.offset))
-                    .collect(),
-                *span,
-            );
-        }
-    }
-    panic!("no struct {name}");
-}
-
-fn wgsl_f32_const(m: &naga::Module, name: &str) -> f32 {
-    for (_, c) in m.constants.iter() {
-        if c.name.as_deref() == Some(name)
-            && let naga::Expression::Literal(naga::Literal::F32(v)) = m.global_expressions[c.init]
-        {
-            return v;
-        }
-    }
-    panic!("no f32 constant {name}");
-}
-
-fn wgsl_u32_const(m: &naga::Module, name: &str) -> u32 {
-    for (_, c) in m.constants.iter() {
-        if c.name.as_deref() == Some(name)
-            && let naga::Expression::Literal(naga::Literal::U32(v)) = m.global_expressions[c.init]
-        {
-            return v;
-        }
-    }
-    panic!("no u32 constant {name}");
-}
-
-#[test]
-fn every_pass_parses_and_validates() {
-    for (pass, tiles) in Pass::ALL
-        .into_iter()
-        .flat_map(|p| [(p, Tiles::Workgroup), (p, Tiles::Uniform)])
-    {
-        let m = module_with(pass, tiles);
-        assert!(
-            m.entry_points.iter().any(|e| e.name == pass.name()),
-            "{} has no entry point of its name",
-            pass.name()
-        );
-        assert_eq!(
-            m.entry_points.len(),
-            1,
-            "{}: one entry point per file",
-            pass.name()
-        );
-    }
-}
-
-#[test]
-fn shared_structs_match_rust_layout() {
-    let m = module(Pass::BackwardTexel);
-    let check = |name: &str, rust: &[(&str, usize)], size: usize| {
-        let (members, span) = wgsl_struct(&m, name);
-        let got: Vec<(String, u32)> = members;
-        let want: Vec<(String, u32)> = rust
-            .iter()
-            .map(|(n, o)| (n.to_string(), *o as u32))
-            .collect();
-        assert_eq!(got, want, "{name}: member offsets");
-        assert_eq!(span as usize, size, "{name}: size");
-    };
-    check(
-        "Params",
-        &[
-            ("n_pixels", offset_of!(DispatchParams, n_pixels)),
-            ("n_texels", offset_of!(DispatchParams, n_texels)),
-            ("first", offset_of!(DispatchParams, first)),
-            ("perspective", offset_of!(DispatchParams, perspective)),
-            ("n_lobes", offset_of!(DispatchParams, n_lobes)),
-            ("n_const", offset_of!(DispatchParams, n_const)),
-            ("slice_len", offset_of!(DispatchParams, slice_len)),
-            ("n_slices", offset_of!(DispatchParams, n_slices)),
-            ("pixel_base", offset_of!(DispatchParams, pixel_base)),
-            ("texel_base", offset_of!(DispatchParams, texel_base)),
-            ("slice_stride", offset_of!(DispatchParams, slice_stride)),
-            ("_pad", offset_of!(DispatchParams, _pad)),
-            ("cc", offset_of!(DispatchParams, cc)),
-            ("lc", offset_of!(DispatchParams, lc)),
-        ],
-        size_of::<DispatchParams>(),
-    );
-    check(
-        "Texel",
-        &[
-            ("w", offset_of!(Texel, w)),
-            ("h", offset_of!(Texel, h)),
-            ("ld", offset_of!(Texel, ld)),
-            ("fconst", offset_of!(Texel, fconst)),
-            ("coef", offset_of!(Texel, coef)),
-            ("lobes", offset_of!(Texel, lobes)),
-        ],
-        size_of::<Texel>(),
-    );
-    check(
-        "Pixel",
-        &[
-            ("n", offset_of!(Pixel, n)),
-            ("nn_m1", offset_of!(Pixel, nn_m1)),
-            ("wp", offset_of!(Pixel, wp)),
-            ("g", offset_of!(Pixel, g)),
-        ],
-        size_of::<Pixel>(),
-    );
-}
-
-#[test]
-fn shared_constants_match_rust() {
-    let m = module(Pass::Forward);
-    assert_eq!(wgsl_u32_const(&m, "WG") as usize, WG);
-    for pass in [Pass::Forward, Pass::BackwardNormal] {
-        assert_eq!(wgsl_u32_const(&module(pass), "CHUNK") as usize, TEXEL_CHUNK);
-    }
-    assert_eq!(
-        wgsl_u32_const(&module(Pass::BackwardTexel), "CHUNK") as usize,
-        PIXEL_CHUNK
-    );
-    // the shaders' 2^u - 1 is the fast CPU path's polynomial, whose error tests/it/cpu_math.rs sweeps
-    for (j, q) in EXP2M1_Q.iter().enumerate() {
-        assert_eq!(
-            wgsl_f32_const(&m, &format!("EXP2M1_Q{j}")),
-            *q,
-            "EXP2M1_Q{j}"
-        );
-    }
-}
-
-// Operations per lit pair, from naga's IR of each gather pass as assembled (workgroup
-// tiles), orthographic camera, 3 active lobes: the statements of the orthographic pair loop
-// (the first loop inside the tile loop: the `perspective == 0` branch comes first), with
-// every call inlined and every loop inside it (the lobe loop) counted 3 times. Each
-// expression counts once per component of its result (dot: once per component of its
-// operands), a float add or subtract of a product used nowhere else counts with that
-// product as one fused multiply-add; swizzles, accesses, constructors and literals are free.
-// Branches: the path takes the costlier side of each (what follows a side that returns,
-// breaks or continues is not on that side's path), except, for grey lobes, the branches on
-// what the channels share (`shared_*`), where it takes the cheaper; "all" adds both sides
-// of every branch. Loads from memory (the tile, the parameters) are counted apart; integer
-// operations are mostly the IR's index arithmetic, which a backend compiler folds.
 
 const LOBES: u32 = 3;
 
@@ -581,7 +414,7 @@ fn pair_ops(pass: Pass, grey: bool) -> Count {
 }
 
 /// Prints the operations per lit pair of each gather pass
-/// (`cargo test --release --test shaders pair_loop_op_counts -- --nocapture`) and holds
+/// (`cargo test --release --test it shaders::op_counts -- --nocapture`) and holds
 /// them under bounds, so that a change that adds work to the pair loop fails here.
 #[test]
 fn pair_loop_op_counts() {
