@@ -1,5 +1,5 @@
 //! The structs shared with the shaders, byte for byte. Kept in sync with the structs of
-//! shaders/common.wgsl; tests/it/shaders.rs compares every member offset and size with naga's.
+//! shaders/common.wgsl; tests/it/shaders/ compares every member offset and size with naga's.
 
 use bytemuck::{Pod, Zeroable};
 

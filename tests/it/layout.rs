@@ -365,10 +365,17 @@ fn rust_files(dir: &str) -> Vec<PathBuf> {
 
 #[test]
 fn each_file_holds_one_idea() {
-    // a source file of the library, the command line or the Python bindings reads at one
-    // sitting; an example is a program a user copies whole
+    // a source file reads at one sitting; an example is a program a user copies whole
     let mut long = Vec::new();
-    for (dir, most) in [("src", 500), ("python/src", 500), ("examples", 100)] {
+    for (dir, most) in [
+        ("src", 500),
+        ("python/src", 500),
+        ("tests", 500),
+        ("benches", 500),
+        ("xtask", 500),
+        ("fuzz", 500),
+        ("examples", 100),
+    ] {
         for p in rust_files(dir) {
             let n = std::fs::read_to_string(&p).expect("reads").lines().count();
             if n > most {
