@@ -42,7 +42,7 @@ impl std::str::FromStr for Device {
 /// `synth::Engine` also names its samples after it.
 pub(crate) enum Picked {
     /// A wgpu adapter.
-    Gpu(gpu::GpuRenderer),
+    Gpu(Box<gpu::GpuRenderer>),
     /// The fast f32 CPU path.
     Cpu(cpu::FastCpu),
     /// The f64 CPU reference.
@@ -57,9 +57,9 @@ impl Device {
         Ok(match self {
             Device::Cpu => Picked::Cpu(cpu::FastCpu::new()?),
             Device::Reference => Picked::Reference(reference::Reference),
-            Device::Gpu => Picked::Gpu(gpu::GpuRenderer::new()?),
+            Device::Gpu => Picked::Gpu(Box::new(gpu::GpuRenderer::new()?)),
             Device::Auto => match gpu::GpuContext::new_hardware() {
-                Ok(ctx) => Picked::Gpu(gpu::GpuRenderer::with_context(ctx)?),
+                Ok(ctx) => Picked::Gpu(Box::new(gpu::GpuRenderer::with_context(ctx)?)),
                 Err(_) => Picked::Cpu(cpu::FastCpu::new()?),
             },
         })
@@ -70,7 +70,7 @@ impl Picked {
     /// The backend, boxed for a [`Renderer`].
     pub(crate) fn into_backend(self) -> Box<dyn Backend> {
         match self {
-            Picked::Gpu(g) => Box::new(g),
+            Picked::Gpu(g) => g,
             Picked::Cpu(c) => Box::new(c),
             Picked::Reference(r) => Box::new(r),
         }

@@ -76,7 +76,7 @@ impl Engine {
                 parallel: true,
             },
             Picked::Gpu(gpu) => {
-                let renderer = Renderer::with_backend(Box::new(gpu));
+                let renderer = Renderer::with_backend(gpu);
                 Engine {
                     label: renderer.describe(),
                     renderer,
