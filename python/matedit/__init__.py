@@ -147,13 +147,15 @@ def _photo(name: str, a) -> np.ndarray:
     return a
 
 
-def edit(photo, material=None, *, like=None, mask=None, like_mask=None, steps=20, weights=None, device="auto") -> dict:
+def edit(photo, material=None, *, like=None, mask=None, like_mask=None, steps=20, weights=None, device="auto", detail=1.0) -> dict:
     """The object in `photo` made of another material, as `matedit edit` does (docs/edit.md).
 
     photo: (H, W, 3), linear float32 or 8-bit sRGB (uint8). material: a preset name or
     control points (108,); or like: another photo, whose material is predicted and refined.
     mask (and like_mask): (H, W) bool, the object; None: the nets find it. steps: refinement
     steps (0: the predictions alone). weights: a weights file (None: the built-in nets).
+    detail: how much of the photo's own detail the edit keeps, 0 to 1 (1: the photo with the
+    shading changed to the new material's; 0: the re-rendered object alone).
 
     Returns a dict: "edit" (H, W, 3) linear, "mask" and "alpha" (H, W), "normals" at the
     crop (S, S, 3) and "crop" (x0, y0, S), "env" (the refined light), "material" and
@@ -171,4 +173,4 @@ def edit(photo, material=None, *, like=None, mask=None, like_mask=None, steps=20
     else:
         m = _ctrl(material)
     mask = None if mask is None else np.asarray(mask, dtype=bool)
-    return edit_photo(photo, np.ascontiguousarray(m), mask, steps, weights, device)
+    return edit_photo(photo, np.ascontiguousarray(m), mask, steps, weights, device, detail)

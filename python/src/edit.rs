@@ -23,7 +23,7 @@ pub(crate) fn builtin_weights(py: Python<'_>) -> Bound<'_, pyo3::types::PyBytes>
 /// points (108,), the object's mask (H, W) bool or None (the nets find it). Returns a dict
 /// of NumPy arrays and numbers (see matedit.edit).
 #[pyfunction]
-#[pyo3(signature = (photo, material, mask = None, steps = 150, weights = None, device = "auto"))]
+#[pyo3(signature = (photo, material, mask = None, steps = 150, weights = None, device = "auto", detail = 1.0))]
 pub(crate) fn edit_photo<'py>(
     py: Python<'py>,
     photo: PyReadonlyArrayDyn<'py, f32>,
@@ -32,6 +32,7 @@ pub(crate) fn edit_photo<'py>(
     steps: usize,
     weights: Option<PathBuf>,
     device: &str,
+    detail: f32,
 ) -> PyResult<Bound<'py, PyDict>> {
     use matedit::edit::photo::{self, PhotoOptions};
     let img = images("photo", &photo)?;
@@ -62,8 +63,12 @@ pub(crate) fn edit_photo<'py>(
     let device: Device = device
         .parse()
         .map_err(|e: String| invalid(format!("device: {e}")))?;
+    if !(0.0..=1.0).contains(&detail) {
+        return Err(invalid(format!("detail: {detail} is outside [0, 1]")));
+    }
     let options = PhotoOptions {
         steps,
+        detail,
         ..PhotoOptions::default()
     };
     let (d, edit) = py

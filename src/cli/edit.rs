@@ -42,6 +42,10 @@ pub struct Args {
     /// Take the material predicted and refined from another photo.
     #[arg(long, value_name = "OTHER_PHOTO")]
     like: Option<PathBuf>,
+    /// The object's mask in the other photo (as --mask; default: its PNG alpha, else the
+    /// nets find it).
+    #[arg(long, value_name = "MASK", requires = "like")]
+    like_mask: Option<PathBuf>,
     /// Output folder (created if missing).
     #[arg(short, long, value_name = "OUT_DIR")]
     output: PathBuf,
@@ -54,6 +58,14 @@ pub struct Args {
     /// Refinement steps of the normals after material and light (0: keep the nets' normals).
     #[arg(long, value_name = "J", default_value_t = PhotoOptions::default().normal_steps)]
     normal_steps: usize,
+    /// How much of the photo's own detail the edit keeps, 0 to 1: 1 the photo with the
+    /// shading changed from its material to the new one (its own material gives it back),
+    /// 0 the re-rendered object alone.
+    #[arg(long, value_name = "D", default_value_t = PhotoOptions::default().detail, value_parser = parse_detail)]
+    detail: f32,
+    /// Keep the nets' light level instead of the background's (docs/edit.md).
+    #[arg(long)]
+    no_background_light: bool,
     /// The nets' predictions as they are, without refinement.
     #[arg(long, conflicts_with_all = ["steps", "normal_steps"])]
     no_refine: bool,
@@ -83,7 +95,14 @@ pub fn run(args: &Args) -> Result<(), Failure> {
         None => None,
     };
     let other = match &args.like {
-        Some(p) => Some(load_photo(p)?),
+        Some(p) => {
+            let (img, alpha) = load_photo(p)?;
+            let m = match &args.like_mask {
+                Some(m) => Some(load_mask(m, &img)?),
+                None => alpha,
+            };
+            Some((img, m))
+        }
         None => None,
     };
     let nets = match &args.weights {
@@ -94,6 +113,8 @@ pub fn run(args: &Args) -> Result<(), Failure> {
     let options = PhotoOptions {
         steps: if args.no_refine { 0 } else { args.steps },
         normal_steps: if args.no_refine { 0 } else { args.normal_steps },
+        detail: args.detail,
+        background_light: !args.no_background_light,
         ..PhotoOptions::default()
     };
     let load_s = t0.elapsed().as_secs_f64();
@@ -153,6 +174,8 @@ pub fn run(args: &Args) -> Result<(), Failure> {
         "loss_last": d.losses.last(),
         "psnr_predicted_db": d.psnr_predicted,
         "psnr_refined_db": d.psnr_refined,
+        "detail": d.detail,
+        "light_factors": d.light_factors,
         "seconds": stages,
     });
     io::create_dirs(&args.output)?;
@@ -178,6 +201,15 @@ pub fn run(args: &Args) -> Result<(), Failure> {
         args.output.display()
     );
     Ok(())
+}
+
+/// `--detail`: a number in [0, 1].
+fn parse_detail(s: &str) -> Result<f32, String> {
+    match s.parse::<f32>() {
+        Ok(v) if (0.0..=1.0).contains(&v) => Ok(v),
+        Ok(v) => Err(format!("{v} is outside [0, 1]")),
+        Err(_) => Err(format!("'{s}' is not a number")),
+    }
 }
 
 /// A photo, linear RGB, with a PNG's alpha as its mask (where it has one that is not

@@ -133,7 +133,14 @@ pub fn analyse(
     let Upload { photo, mask } = upload;
     let d = photo::decompose(renderer, nets, &photo, mask.as_deref(), options, progress)?;
     let factor = photo.width.max(photo.height).div_ceil(PREVIEW_SIDE).max(1);
-    let (small, small_photo) = scaled(&d, &photo, factor);
+    let (mut small, small_photo) = scaled(&d, &photo, factor);
+    let coverage = small
+        .normals
+        .normals
+        .iter()
+        .map(|n| f32::from(u8::from(n != &[0.0; 3])))
+        .collect();
+    small.set_render_normals(renderer, small.normals.clone(), coverage)?;
     let preview = Preview::default();
     let crop_mask: Vec<bool> = d.normals.normals.iter().map(|n| n != &[0.0; 3]).collect();
     let files = vec![
@@ -245,7 +252,19 @@ pub fn sphere_png(renderer: &Renderer, material: &Material) -> Result<Vec<u8>> {
         material: material.clone(),
         camera: Camera::Orthographic,
     })?;
-    let image = renderer.render(&batch)?.remove(0);
+    // a sharp lobe shows the sky's texels as dots under the layer's point lights: the
+    // continuous light with sub-texels from the sky at 4 times the size
+    let detail = crate::builtin_sky::procedural_env(128, 256, Convention::Equirect);
+    let light = crate::continuous_light::Integration::Tolerance(photo::LIGHT_TOLERANCE);
+    let image = crate::continuous_light::render(
+        renderer,
+        &batch,
+        &Accuracy::Exact,
+        light,
+        &[Some(detail)],
+    )?
+    .0
+    .remove(0);
     crate::io::png::encode_preview(&image, &Preview::default())
 }
 
@@ -291,7 +310,8 @@ fn light_png(env: &EnvMap) -> Result<Vec<u8>> {
 
 /// `d` and `photo` box-filtered by `f` (a pixel of the result covers f x f of the photo):
 /// the photo and the soft mask averaged, the normals of a block averaged and renormalised
-/// where most of the block is on the object, the crop scaled to cover the same photo pixels.
+/// where most of the block is on the object, the crop scaled to cover the same photo pixels
+/// (without its render grid: [`Decomposition::set_render_normals`]).
 pub fn scaled(d: &Decomposition, photo: &Image, f: usize) -> (Decomposition, Image) {
     let (w, h) = (d.width.div_ceil(f), d.height.div_ceil(f));
     let reduced = raster::reduce((d.width, d.height), (f, f), (w, h), |block| {
@@ -362,6 +382,15 @@ pub fn scaled(d: &Decomposition, photo: &Image, f: usize) -> (Decomposition, Ima
         psnr_refined: d.psnr_refined,
         losses: Vec::new(),
         normal_losses: Vec::new(),
+        light_factors: d.light_factors,
+        render_normals: NormalMap {
+            width: 0,
+            height: 0,
+            normals: Vec::new(),
+        },
+        coverage: Vec::new(),
+        reference: Image::zeros(0, 0),
+        detail: d.detail,
         stages: Vec::new(),
     };
     (small_d, small)

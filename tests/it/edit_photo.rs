@@ -316,3 +316,58 @@ fn bad_inputs_fail_with_one_line_and_write_nothing() {
         assert!(!out.exists(), "{want}: wrote {}", out.display());
     }
 }
+
+/// The photo's own material gives the photo back with all of its detail, and the render
+/// alone (the object as the layer explains it) with none; the light takes the grey
+/// background's level.
+#[test]
+fn the_photos_own_material_gives_it_back() {
+    use matedit::edit::photo::{self, PhotoOptions};
+    let tmp = tempfile::tempdir().unwrap();
+    let (a, a_mask) = photo(tmp.path(), "a", "blobby:seed=3", "plastic-red", 96);
+    let img = io::load_image(&a).unwrap();
+    let (_, _, mask) = io::load_mask(&a_mask).unwrap();
+    let renderer = Renderer::new(Device::Cpu).unwrap();
+    let nets = matedit::nets::Nets::builtin().unwrap();
+    let options = PhotoOptions::default();
+    let mut d =
+        photo::decompose(&renderer, &nets, &img, Some(&mask), &options, &mut |_| {}).unwrap();
+    assert!(
+        d.light_factors.iter().all(|&f| f != 1.0),
+        "{:?}",
+        d.light_factors
+    );
+    let psnr = |e: &matedit::Image| {
+        let (mut se, mut n) = (0.0f64, 0usize);
+        for (i, _) in mask.iter().enumerate().filter(|(_, m)| **m) {
+            for k in 0..3 {
+                se += f64::from(e.pixels[i][k] - img.pixels[i][k]).powi(2);
+                n += 1;
+            }
+        }
+        10.0 * (1.0 / (se / n as f64).max(1e-30)).log10()
+    };
+    let own = d
+        .edit(&renderer, &img, &d.material, None, matedit::Accuracy::Exact)
+        .unwrap();
+    eprintln!("own material: {:.2} dB", psnr(&own));
+    assert!(psnr(&own) > 60.0, "own material: {} dB", psnr(&own));
+    d.detail = 0.0;
+    let rendered = d
+        .edit(&renderer, &img, &d.material, None, matedit::Accuracy::Exact)
+        .unwrap();
+    let object = d
+        .render_object(&renderer, &d.material, None, matedit::Accuracy::Exact)
+        .unwrap();
+    let inside: Vec<usize> = (0..mask.len()).filter(|&i| d.alpha[i] == 1.0).collect();
+    assert!(!inside.is_empty());
+    for &i in &inside {
+        for k in 0..3 {
+            assert!(
+                (rendered.pixels[i][k] - object.pixels[i][k]).abs() < 1e-5,
+                "pixel {i}"
+            );
+        }
+    }
+    assert!(psnr(&rendered) < psnr(&own));
+}

@@ -95,6 +95,47 @@ pub(super) fn upsample_normals(
     }
 }
 
+/// The crop's normals and mask box-filtered to `s` x `s`: the normals renormalised where
+/// the object covers part of a pixel (zero where it covers none), and the fraction of each
+/// pixel on the object.
+pub(super) fn render_grid(normals: &NormalMap, mask: &[bool], s: usize) -> (NormalMap, Vec<f32>) {
+    let n = normals.width;
+    let as_image = Image {
+        width: n,
+        height: n,
+        pixels: normals.normals.clone(),
+    };
+    let coverage: Vec<f32> = raster::resize(&mask_image(mask, n, n), s, s)
+        .pixels
+        .iter()
+        .map(|p| p[0])
+        .collect();
+    let small = raster::resize(&as_image, s, s);
+    let normals = small
+        .pixels
+        .iter()
+        .zip(&coverage)
+        .map(|(c, &cov)| {
+            let len = c.iter().map(|a| a * a).sum::<f32>().sqrt();
+            if cov > 0.0 && len > 1e-3 {
+                c.map(|a| a / len)
+            } else if cov > 0.0 {
+                [0.0, 0.0, 1.0]
+            } else {
+                [0.0; 3]
+            }
+        })
+        .collect();
+    (
+        NormalMap {
+            width: s,
+            height: s,
+            normals,
+        },
+        coverage,
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

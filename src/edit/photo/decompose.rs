@@ -5,8 +5,11 @@
 use std::time::Instant;
 
 use super::check::{check_mask, check_photo};
-use super::composite::render;
-use super::crop::{crop_around, crop_image, mask_image, paste_scalar, upsample_normals};
+use super::composite::{RENDER_SIZE, render};
+use super::crop::{
+    crop_around, crop_image, mask_image, paste_scalar, render_grid, upsample_normals,
+};
+use super::light::match_background;
 use super::refine::refine_normals;
 use super::{Decomposition, PhotoOptions, Stage};
 use crate::edit::fit::fit;
@@ -56,7 +59,12 @@ pub fn decompose(
         .iter()
         .map(|p| p[0] > 0.5)
         .collect();
-    let p = nets.predict(&input, Some(&small_mask))?;
+    let mut p = nets.predict(&input, Some(&small_mask))?;
+    let light_factors = if options.background_light {
+        match_background(&mut p.env, photo, mask)
+    } else {
+        [1.0; 3]
+    };
     let alpha = raster::blur3(mask, w, h);
     let normals = upsample_normals(&p.normals, crop, mask, w, h);
     let predict_s = t.elapsed().as_secs_f64();
@@ -69,7 +77,7 @@ pub fn decompose(
         .iter()
         .map(|p| p[0] > 0.5)
         .collect();
-    let inputs = Inputs::new(normals.clone(), target, Some(crop_mask))?;
+    let inputs = Inputs::new(normals.clone(), target, Some(crop_mask.clone()))?;
     let mut fit_options = Options::new(p.material.clone(), Light::FitFrom(p.env.clone()));
     fit_options.steps = options.steps;
     fit_options.work_size = options.work_size;
@@ -103,7 +111,8 @@ pub fn decompose(
         work_normals = refined;
     }
     let psnr_refined = judge(&work_normals, &material, &env)?;
-    Ok(Decomposition {
+    let (render_normals, coverage) = render_grid(&normals, &crop_mask, crop.size.min(RENDER_SIZE));
+    let mut d = Decomposition {
         width: w,
         height: h,
         crop,
@@ -118,11 +127,24 @@ pub fn decompose(
         psnr_refined,
         losses,
         normal_losses,
+        light_factors,
+        render_normals: NormalMap {
+            width: 0,
+            height: 0,
+            normals: Vec::new(),
+        },
+        coverage: Vec::new(),
+        reference: Image::zeros(0, 0),
+        detail: options.detail,
         stages: vec![
             ("predict", predict_s),
             ("refine", t.elapsed().as_secs_f64()),
         ],
-    })
+    };
+    let t = Instant::now();
+    d.set_render_normals(renderer, render_normals, coverage)?;
+    d.stages.push(("reference", t.elapsed().as_secs_f64()));
+    Ok(d)
 }
 
 /// The object as the nets find it on the whole photo padded to a square, at `n` x `n`:

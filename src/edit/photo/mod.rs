@@ -26,14 +26,15 @@ pub mod check;
 pub mod composite;
 mod crop;
 pub mod decompose;
+pub mod light;
 mod refine;
 
 pub use crate::raster::Crop;
 pub use check::{MAX_PIXELS, MAX_SIDE, MIN_OBJECT_PIXELS, MIN_SIDE, check_mask, check_photo};
-pub use composite::composite;
+pub use composite::{LIGHT_TOLERANCE, MAX_RATIO, RENDER_SIZE, composite};
 pub use decompose::decompose;
 
-use crate::{EnvMap, Material, NormalMap};
+use crate::{EnvMap, Image, Material, NormalMap};
 
 /// How to edit.
 #[derive(Clone, Debug)]
@@ -53,6 +54,14 @@ pub struct PhotoOptions {
     pub work_size: usize,
     /// The nets' input size (square; a multiple of 2^(levels - 1)).
     pub net_size: usize,
+    /// How much of the photo's own detail an edit keeps, in [0, 1]: 1 (the default) the
+    /// photo with the shading changed from the old material to the new (the photo itself
+    /// when the material is the photo's own), 0 the re-rendered object alone
+    /// ([`composite`](mod@composite)).
+    pub detail: f32,
+    /// The predicted light takes the background's mean radiance before the refinement
+    /// ([`light`]).
+    pub background_light: bool,
 }
 
 impl Default for PhotoOptions {
@@ -64,6 +73,8 @@ impl Default for PhotoOptions {
             normal_anchor: 0.0,
             work_size: 128,
             net_size: 64,
+            detail: 1.0,
+            background_light: true,
         }
     }
 }
@@ -101,6 +112,19 @@ pub struct Decomposition {
     /// The normals' refinement's loss (data term and smoothness prior) at its start and
     /// after each step taken (empty without it).
     pub normal_losses: Vec<f64>,
+    /// The factors the predicted light was scaled by per channel to take the background's
+    /// level (ones where it was not: [`light`]).
+    pub light_factors: [f64; 3],
+    /// The object's normals at the size edits render at (at most [`RENDER_SIZE`] a side,
+    /// over the crop).
+    pub render_normals: NormalMap,
+    /// The fraction of each of `render_normals`' pixels on the object.
+    pub coverage: Vec<f32>,
+    /// The refined decomposition rendered at `render_normals`' pixels: what the model
+    /// explains of the photo.
+    pub reference: Image,
+    /// How much of the photo's detail edits keep ([`PhotoOptions::detail`]).
+    pub detail: f32,
     /// Seconds per stage: "predict", "refine".
     pub stages: Vec<(&'static str, f64)>,
 }

@@ -1,0 +1,108 @@
+//! The light's level and colour from the whole photo. A photo alone cannot tell a bright
+//! material under a dim light from a dark one under a bright light: the layer renders the
+//! product of the two, and the nets settle on one split of it. A new material needs the
+//! true light to look as bright as a photo of it would. The photo's background is lit by
+//! that light, and, where it shows the surroundings, is that light: so the predicted
+//! light's mean radiance, channel by channel, is set to the background's mean (times
+//! [`BACKGROUND_GAIN`]) before the refinement, whose level prior then holds the light near
+//! that level while the material takes what the object's shading asks for.
+//!
+//! A background much darker than the object (an object photographed on black) says
+//! nothing of the light: the split is then left as the refinement made it.
+
+use crate::{EnvMap, Image};
+
+/// The light's mean radiance over the background's mean radiance.
+pub const BACKGROUND_GAIN: f64 = 1.0;
+/// The background informs the light only when its mean luminance is at least this
+/// fraction of the object's.
+const MIN_BACKGROUND: f64 = 0.05;
+/// The factor applied to a channel is kept within [1 / MAX_FACTOR, MAX_FACTOR].
+const MAX_FACTOR: f64 = 64.0;
+
+/// Scales `env` per channel so that its mean radiance (over the sphere, by solid angle)
+/// is [`BACKGROUND_GAIN`] times the mean of the photo's pixels off `mask`. Returns the
+/// factors applied (ones where the background says nothing).
+pub fn match_background(env: &mut EnvMap, photo: &Image, mask: &[bool]) -> [f64; 3] {
+    let (mut bg, mut obj, mut n_bg, mut n_obj) = ([0.0f64; 3], [0.0f64; 3], 0usize, 0usize);
+    for (p, &m) in photo.pixels.iter().zip(mask) {
+        let (sum, n) = if m {
+            (&mut obj, &mut n_obj)
+        } else {
+            (&mut bg, &mut n_bg)
+        };
+        for k in 0..3 {
+            sum[k] += f64::from(p[k]);
+        }
+        *n += 1;
+    }
+    if n_bg == 0 || n_obj == 0 {
+        return [1.0; 3];
+    }
+    let bg = bg.map(|v| v / n_bg as f64);
+    let obj = obj.map(|v| v / n_obj as f64);
+    let luminance = |c: [f64; 3]| 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2];
+    let mean = mean_radiance(env);
+    if luminance(bg) < MIN_BACKGROUND * luminance(obj) || mean.iter().any(|&m| m <= 0.0) {
+        return [1.0; 3];
+    }
+    let factors: [f64; 3] = std::array::from_fn(|k| {
+        (BACKGROUND_GAIN * bg[k].max(1e-6) / mean[k]).clamp(1.0 / MAX_FACTOR, MAX_FACTOR)
+    });
+    for t in &mut env.texels {
+        for k in 0..3 {
+            t[k] = (f64::from(t[k]) * factors[k]) as f32;
+        }
+    }
+    factors
+}
+
+/// The map's mean radiance per channel, weighted by the texels' solid angles.
+pub fn mean_radiance(env: &EnvMap) -> [f64; 3] {
+    let (mut sum, mut weight) = ([0.0f64; 3], 0.0f64);
+    for r in 0..env.height {
+        for c in 0..env.width {
+            let (_, d_omega) = env.convention.texel(r, c, env.height, env.width);
+            let t = env.texels[r * env.width + c];
+            for k in 0..3 {
+                sum[k] += d_omega * f64::from(t[k]);
+            }
+            weight += d_omega;
+        }
+    }
+    sum.map(|s| s / weight.max(1e-300))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::envmap::Convention;
+
+    #[test]
+    fn the_light_takes_the_backgrounds_level() {
+        let mut env = EnvMap::constant(8, 16, Convention::Equirect, [2.0, 1.0, 0.5]);
+        let mut photo = Image::zeros(4, 4);
+        let mask: Vec<bool> = (0..16).map(|i| i < 4).collect();
+        for (p, &m) in photo.pixels.iter_mut().zip(&mask) {
+            *p = if m { [0.5; 3] } else { [0.4, 0.2, 0.1] };
+        }
+        let f = match_background(&mut env, &photo, &mask);
+        let mean = mean_radiance(&env);
+        for k in 0..3 {
+            assert!((mean[k] - BACKGROUND_GAIN * [0.4, 0.2, 0.1][k]).abs() < 1e-6);
+        }
+        assert!((f[0] - 0.2).abs() < 1e-9 && (f[2] - 0.2).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_black_background_says_nothing() {
+        let mut env = EnvMap::constant(8, 16, Convention::Equirect, [1.0; 3]);
+        let mut photo = Image::zeros(4, 4);
+        let mask: Vec<bool> = (0..16).map(|i| i < 4).collect();
+        for (p, &m) in photo.pixels.iter_mut().zip(&mask) {
+            *p = if m { [0.5; 3] } else { [0.001; 3] };
+        }
+        assert_eq!(match_background(&mut env, &photo, &mask), [1.0; 3]);
+        assert_eq!(env.texels[0], [1.0; 3]);
+    }
+}
