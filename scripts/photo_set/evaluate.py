@@ -236,7 +236,9 @@ def main():
               "like_mask": "--like-mask" in options, "box": "--box" in options}
     os.makedirs(args.out, exist_ok=True)
     with open(os.path.join(args.out, "results.json"), "w") as f:
-        json.dump({"config": config, "summary": summ, "scenes": results}, f, indent=1)
+        data = {"config": config, "summary": summ, "scenes": results}
+        # strict JSON: an infinite PSNR (identical images) becomes null
+        json.dump(json.loads(json.dumps(data), parse_constant=lambda c: None), f, indent=1)
         f.write("\n")
     header = f"# matedit edit on {args.set} ({len(results)} scenes{', extra: ' + args.extra if args.extra else ''})"
     with open(os.path.join(args.out, "results.md"), "w") as f:
