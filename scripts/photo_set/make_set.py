@@ -442,8 +442,8 @@ def save_png(path, array):
     Image.fromarray(array).save(path, optimize=True)
 
 
-def render(mi, d, spp=None):
-    return np.array(mi.render(mi.load_dict(d), spp=spp or 0), dtype=np.float32)
+def render(mi, d):
+    return np.array(mi.render(mi.load_dict(d)), dtype=np.float32)
 
 
 def photo_exposure(image, mask):
@@ -466,13 +466,13 @@ def make_scene(mi, scene, size, spp, out, write_exr):
         texture_path = os.path.join(workdir, "floor.png")
         save_png(texture_path, texture)
         scene["floor"] = {"texture": kind, "tile": round(tile, 3)}
-        args = (mi, scene)
-        coverage = render(mi, scene_dict(*args, None, size, 16, workdir, texture_path, tile, mask_pass=True))
-        mask = coverage[..., 0] > 0.5
+        with_object = lambda material, spp, **kw: scene_dict(mi, scene, material, size, spp, workdir,
+                                                             texture_path, tile, **kw)
+        mask = render(mi, with_object(None, 16, mask_pass=True))[..., 0] > 0.5
         if mask.sum() < 50:
             raise RuntimeError(f"seed {scene['seed']}: the object is hidden ({mask.sum()} pixels)")
-        photo = render(mi, scene_dict(*args, scene["material"], size, spp, workdir, texture_path, tile))
-        edit = render(mi, scene_dict(*args, scene["edit_material"], size, spp, workdir, texture_path, tile))
+        photo = render(mi, with_object(scene["material"], spp))
+        edit = render(mi, with_object(scene["edit_material"], spp))
     exposure = photo_exposure(photo, mask)
     side = min(width, height)
     swatch = render(mi, swatch_dict(mi, scene, side, spp, bsdf(scene["edit_material"])))
