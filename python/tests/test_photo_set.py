@@ -1,0 +1,102 @@
+"""scripts/photo_set: evaluate.py's metrics on arrays whose answers are known, and the
+committed photo-like scenes (tests/data/photo_set) and photos (tests/data/photos) hold the
+files and boxes their JSON promises. Needs neither Mitsuba nor a matedit binary."""
+
+import importlib.util
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+PIL = pytest.importorskip("PIL.Image")
+
+ROOT = Path(__file__).resolve().parents[2]
+SCENES = sorted(p.parent for p in (ROOT / "tests/data/photo_set").glob("*/meta.json"))
+
+
+def load_evaluate():
+    spec = importlib.util.spec_from_file_location("evaluate", ROOT / "scripts/photo_set/evaluate.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+evaluate = load_evaluate()
+
+
+def test_psnr_counts_only_the_masked_pixels():
+    a = np.zeros((2, 2, 3))
+    b = np.zeros((2, 2, 3))
+    b[0, 0] = 0.1  # masked: mse = 0.01 -> 20 dB
+    b[1, 1] = 1.0  # outside the mask: ignored
+    mask = np.array([[True, False], [False, False]])
+    assert evaluate.psnr(a, b, mask) == pytest.approx(20.0)
+    # half the masked pixels off by 0.1 in every channel: mse = 0.005 -> 10 log10(200)
+    mask[0, 1] = True
+    assert evaluate.psnr(a, b, mask) == pytest.approx(10 * math.log10(200))
+    assert evaluate.psnr(a, a, mask) == math.inf
+
+
+def test_iou():
+    a = np.array([[1, 1, 0, 0]], bool)
+    b = np.array([[0, 1, 1, 0]], bool)
+    assert evaluate.iou(a, b) == pytest.approx(1 / 3)
+    assert evaluate.iou(a, a) == 1.0
+    assert evaluate.iou(a, ~a) == 0.0
+    assert evaluate.iou(np.zeros(4, bool), np.zeros(4, bool)) == 1.0
+
+
+def test_summary_takes_median_and_worst_and_counts_refusals():
+    results = [
+        {"own_psnr": 30.0, "own_status": "ok", "nomask_status": "refused"},
+        {"own_psnr": 20.0, "own_status": "ok", "nomask_iou": 0.5, "nomask_status": "ok"},
+        {"own_status": "error", "nomask_iou": 0.9, "nomask_status": "ok"},
+    ]
+    s = evaluate.summary(results, evaluate.FIGURES)
+    assert s["own_psnr"] == {"median": 25.0, "worst": 20.0, "n": 2}
+    assert s["nomask_iou"]["worst"] == 0.5
+    assert (s["own_errors"], s["nomask_refused"]) == (1, 1)
+
+
+def test_committed_scenes_have_what_meta_promises():
+    assert len(SCENES) == 6
+    for scene in SCENES:
+        meta = json.loads((scene / "meta.json").read_text())
+        width, height = meta["size"]
+        for name in ("photo.png", "mask.png", "edit_true.png"):
+            assert PIL.open(scene / name).size == (width, height), (scene, name)
+        side = min(width, height)
+        for name in ("swatch.png", "swatch_mask.png"):
+            assert PIL.open(scene / name).size == (side, side), (scene, name)
+        mask = np.asarray(PIL.open(scene / "mask.png")) > 127
+        assert set(np.unique(np.asarray(PIL.open(scene / "mask.png")))) <= {0, 255}
+        assert mask.sum() == meta["object_pixels"]
+        ys, xs = np.nonzero(mask)
+        assert meta["box"] == [xs.min(), ys.min(), xs.max() + 1, ys.max() + 1]
+        assert meta["material"] != meta["edit_material"] and meta["envmap"] != meta["swatch_envmap"]
+
+
+def test_splits_are_disjoint():
+    spec = importlib.util.spec_from_file_location("make_set", ROOT / "scripts/photo_set/make_set.py")
+    make_set = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(make_set)  # imports NumPy and Pillow only; Mitsuba when run
+    assert not set(make_set.TEST_ENVMAPS) & set(make_set.TUNE_ENVMAPS)
+    assert {s["split"] for s in map(lambda p: json.loads((p / "meta.json").read_text()), SCENES)} == {"test"}
+
+
+def test_photos_have_boxes_and_masks_inside_them():
+    folder = ROOT / "tests/data/photos"
+    boxes = json.loads((folder / "boxes.json").read_text())
+    assert len(boxes) >= 3
+    for name, entry in boxes.items():
+        width, height = PIL.open(folder / name).size
+        x0, y0, x1, y1 = entry["box"]
+        assert 0 <= x0 < x1 <= width and 0 <= y0 < y1 <= height, name
+        mask = np.asarray(PIL.open(folder / (Path(name).stem + "_mask.png"))) > 127
+        assert mask.shape == (height, width)
+        ys, xs = np.nonzero(mask)
+        # the box holds the mask, a few pixels of slack at most
+        assert x0 <= xs.min() <= x0 + 4 and x1 - 4 <= xs.max() + 1 <= x1, name
+        assert y0 <= ys.min() <= y0 + 4 and y1 - 4 <= ys.max() + 1 <= y1, name
