@@ -358,13 +358,13 @@ pub fn report(accuracy: &Accuracy, choices: &[Option<lod::Choice>]) {
 pub struct PointingArgs {
     /// A box around the object, in pixels: columns X0 to X1, rows Y0 to Y1, X1 and Y1
     /// exclusive (the cut keeps nothing outside it).
-    #[arg(long = "box", value_name = "X0,Y0,X1,Y1")]
+    #[arg(long = "box", value_name = "X0,Y0,X1,Y1", allow_hyphen_values = true)]
     pub bounds: Option<String>,
     /// A pixel (column, row) on the object; repeatable.
-    #[arg(long = "point", value_name = "X,Y")]
+    #[arg(long = "point", value_name = "X,Y", allow_hyphen_values = true)]
     pub points: Vec<String>,
     /// A pixel (column, row) not on the object; repeatable.
-    #[arg(long = "not", value_name = "X,Y")]
+    #[arg(long = "not", value_name = "X,Y", allow_hyphen_values = true)]
     pub nots: Vec<String>,
 }
 
@@ -385,7 +385,7 @@ impl PointingArgs {
         use matedit::edit::photo::Pointing;
         use matedit::segment::Rect;
         let mut p = Pointing::default();
-        let mut take = |flag: &str, value: &str, n: usize| -> Result<Option<Vec<usize>>, Failure> {
+        let take = |flag: &str, value: &str, n: usize| -> Result<Option<Vec<usize>>, Failure> {
             let bad =
                 |what: &str| Failure::from(Error::Invalid(format!("--{flag} {value}: {what}")));
             let rest = match number {

@@ -2,7 +2,7 @@
 //! with a prior): a box outside which is background, points on the object and points off
 //! it, and, if given, a probability of each pixel being on the object (the nets' mask).
 //!
-//! The work is done on a grid of at most [`Settings::work_size`] cells a side over the
+//! The work is done on a grid of at most [`Settings::work_size`] cells a side (256) over the
 //! area around the box (each cell the mean of its pixels' display colours): colour models
 //! of the object and the background (mixtures of Gaussians, [`gmm`]), then a minimum cut
 //! ([`maxflow`]) of a graph whose terminal arcs are each cell's colour cost (and the
@@ -79,7 +79,7 @@ pub struct Settings {
 impl Default for Settings {
     fn default() -> Self {
         Settings {
-            work_size: 320,
+            work_size: 256,
             iterations: 3,
             components: 5,
             smoothness: 50.0,
