@@ -162,7 +162,7 @@ fn invert(m: &[[f64; 3]; 3]) -> Option<([[f64; 3]; 3], f64)> {
         m[i1][j1] * m[i2][j2] - m[i1][j2] * m[i2][j1]
     };
     let det = m[0][0] * c(0, 0) + m[0][1] * c(0, 1) + m[0][2] * c(0, 2);
-    if !(det > 1e-30) {
+    if det.is_nan() || det <= 1e-30 {
         return None;
     }
     Some((
