@@ -38,7 +38,8 @@
 //! - [`lod`]: levels of detail, on any backend;
 //! - the backends: [`gpu`], [`cpu`], [`reference`](mod@reference);
 //! - beneath them: the [`Backend`] trait over [`Scenes`], and [`prepare`] (prepared scenes);
-//! - on images: [`raster`] (bilinear lookups, box filters, crops, blurs);
+//! - on images: [`raster`] (bilinear lookups, box filters, crops, blurs), [`segment`]
+//!   (an object cut out of a photo from a box and points);
 //! - scene types: [`scene`] (with the [`NormalMap`]), [`material`], [`envmap`], [`camera`];
 //!   built-in inputs: [`presets`], [`builtin_sky`]; procedural lights: [`envgen`];
 //! - at the bottom: [`error`], [`spline`], [`splitmix`].
@@ -71,6 +72,7 @@ pub mod raster;
 pub mod reference;
 mod renderer;
 pub mod scene;
+pub mod segment;
 #[cfg(feature = "serve")]
 pub mod serve;
 pub mod shapes;

@@ -147,13 +147,17 @@ def _photo(name: str, a) -> np.ndarray:
     return a
 
 
-def edit(photo, material=None, *, like=None, mask=None, like_mask=None, steps=20, weights=None, device="auto", detail=1.0) -> dict:
+def edit(photo, material=None, *, like=None, mask=None, like_mask=None, steps=20, weights=None, device="auto", box=None, points=None, detail=1.0) -> dict:
     """The object in `photo` made of another material, as `matedit edit` does (docs/edit.md).
 
     photo: (H, W, 3), linear float32 or 8-bit sRGB (uint8). material: a preset name or
     control points (108,); or like: another photo, whose material is predicted and refined.
-    mask (and like_mask): (H, W) bool, the object; None: the nets find it. steps: refinement
-    steps (0: the predictions alone). weights: a weights file (None: the built-in nets).
+    mask (and like_mask): (H, W) bool, the object; None: the nets find it (a ValueError
+    "no single object found" where none stands out). box: (x0, y0, x1, y1) in pixels
+    around the object (x1, y1 exclusive); points: [(x, y), ...] on the object, (x, y, False)
+    off it: the object is cut out where pointed at, as `matedit edit --box/--point/--not`.
+    steps: refinement steps (0: the predictions alone). weights: a weights file (None: the
+    built-in nets).
     detail: how much of the photo's own detail the edit keeps, 0 to 1 (1: the photo with the
     shading changed to the new material's; 0: the re-rendered object alone).
 
@@ -173,4 +177,12 @@ def edit(photo, material=None, *, like=None, mask=None, like_mask=None, steps=20
     else:
         m = _ctrl(material)
     mask = None if mask is None else np.asarray(mask, dtype=bool)
-    return edit_photo(photo, np.ascontiguousarray(m), mask, steps, weights, device, detail)
+    bounds = None if box is None else tuple(int(v) for v in box)
+    pts = None
+    if points is not None:
+        pts = []
+        for p in points:
+            if len(p) not in (2, 3):
+                raise ValueError(f"points: {p!r} is not (x, y) or (x, y, on_object)")
+            pts.append((int(p[0]), int(p[1]), bool(p[2]) if len(p) == 3 else True))
+    return edit_photo(photo, np.ascontiguousarray(m), mask, steps, weights, device, bounds, pts, detail)

@@ -20,10 +20,12 @@ pub(crate) fn builtin_weights(py: Python<'_>) -> Bound<'_, pyo3::types::PyBytes>
 }
 
 /// `matedit edit` on arrays: the photo (H, W, 3) linear float32, the new material's control
-/// points (108,), the object's mask (H, W) bool or None (the nets find it). Returns a dict
+/// points (108,), the object's mask (H, W) bool or None (the nets find it), or a box
+/// (x0, y0, x1, y1) and points (x, y) on the object or (x, y, False) off it. Returns a dict
 /// of NumPy arrays and numbers (see matedit.edit).
 #[pyfunction]
-#[pyo3(signature = (photo, material, mask = None, steps = 150, weights = None, device = "auto", detail = 1.0))]
+#[pyo3(signature = (photo, material, mask = None, steps = 150, weights = None, device = "auto", bounds = None, points = None, detail = 1.0))]
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn edit_photo<'py>(
     py: Python<'py>,
     photo: PyReadonlyArrayDyn<'py, f32>,
@@ -32,6 +34,8 @@ pub(crate) fn edit_photo<'py>(
     steps: usize,
     weights: Option<PathBuf>,
     device: &str,
+    bounds: Option<(usize, usize, usize, usize)>,
+    points: Option<Vec<(usize, usize, bool)>>,
     detail: f32,
 ) -> PyResult<Bound<'py, PyDict>> {
     use matedit::edit::photo::{self, PhotoOptions};
@@ -71,6 +75,20 @@ pub(crate) fn edit_photo<'py>(
         detail,
         ..PhotoOptions::default()
     };
+    let mut pointing = photo::Pointing {
+        bounds: bounds.map(|(x0, y0, x1, y1)| matedit::segment::Rect { x0, y0, x1, y1 }),
+        ..photo::Pointing::default()
+    };
+    for (x, y, on) in points.unwrap_or_default() {
+        if on {
+            pointing.object.push([x, y]);
+        } else {
+            pointing.background.push([x, y]);
+        }
+    }
+    if !pointing.is_empty() && mask.is_some() {
+        return Err(invalid("give mask, or box and points, not both".into()));
+    }
     let (d, edit) = py
         .detach(|| -> matedit::Result<_> {
             let nets = match &weights {
@@ -78,14 +96,12 @@ pub(crate) fn edit_photo<'py>(
                 None => matedit::nets::Nets::builtin()?,
             };
             let renderer = matedit::Renderer::new(device)?;
-            let d = photo::decompose(
-                &renderer,
-                &nets,
-                &image,
-                mask.as_deref(),
-                &options,
-                &mut |_| {},
-            )?;
+            let object = if pointing.is_empty() {
+                mask.as_deref().into()
+            } else {
+                photo::Object::Pointed(&pointing)
+            };
+            let d = photo::decompose(&renderer, &nets, &image, object, &options, &mut |_| {})?;
             let edit = d.edit(&renderer, &image, &target, None, matedit::Accuracy::Exact)?;
             Ok((d, edit))
         })

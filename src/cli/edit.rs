@@ -4,26 +4,32 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use matedit::edit::photo::{self, Decomposition, PhotoOptions};
+use matedit::edit::photo::{self, Decomposition, Object, PhotoOptions};
 use matedit::io::{self, Format, Preview};
 use matedit::nets::Nets;
 use matedit::{Accuracy, Convention, Device, Image, Material, NormalMap, Renderer};
 use serde_json::json;
 
-use super::shared::{Failure, runtime};
+use super::shared::{Failure, PointingArgs, pointing_json, runtime};
 
 /// Shown after the options by `matedit help edit`.
 pub const EXAMPLES: &str = "\
 Examples:
   matedit edit photo.jpg --material gold -o out/            (a preset: `matedit presets`)
   matedit edit photo.png --material brass.json -o out/ --mask object.png
+  matedit edit photo.jpg --material gold -o out/ --box 120,80,410,360
+  matedit edit photo.jpg --material gold -o out/ --point 250,200 --not 260,330
   matedit edit photo.exr --like other.jpg -o out/          (the other photo's material)
 
 Writes OUT_DIR/edit.(png|jpg|exr) (the input's kind), normals.png, mask.png, light.exr,
 material.json, sphere.png (the refined material on a sphere under the built-in sky),
 compare.png (photo | edit | normals | sphere) and report.json (stage times, PSNR of the
-re-rendered photo before and after refinement). A PNG's alpha is its mask unless --mask
-is given; without either, the nets find the object.";
+re-rendered photo before and after refinement). A PNG's alpha is its mask unless --mask,
+--box or --point is given; without any, the nets find the object, and when no single
+object stands out (they take the table or the wall for it) the edit is refused: point at
+it. --box cuts the object out of the box (nothing outside it is kept), --point marks
+pixels on it and --not pixels off it: a cut that follows the photo's colours and edges,
+with the nets' mask for a prior (docs/edit.md).";
 
 /// The options of `matedit edit`.
 #[derive(clap::Args)]
@@ -50,8 +56,10 @@ pub struct Args {
     #[arg(short, long, value_name = "OUT_DIR")]
     output: PathBuf,
     /// The object's mask (PNG, EXR or NPY, the photo's size; a pixel counts above half).
-    #[arg(long, value_name = "MASK")]
+    #[arg(long, value_name = "MASK", conflicts_with_all = ["bounds", "points", "nots"])]
     mask: Option<PathBuf>,
+    #[command(flatten)]
+    pointing: PointingArgs,
     /// Refinement steps through the layer.
     #[arg(long, value_name = "K", default_value_t = PhotoOptions::default().steps)]
     steps: usize,
@@ -86,8 +94,10 @@ pub fn run(args: &Args) -> Result<(), Failure> {
         &[Format::Jpeg, Format::Png, Format::Exr, Format::Npy],
     )?;
     let (photo, alpha_mask) = load_photo(&args.photo)?;
+    let pointing = args.pointing.pointing(None, photo.width, photo.height)?;
     let mask = match &args.mask {
         Some(m) => Some(load_mask(m, &photo)?),
+        None if pointing.is_some() => None,
         None => alpha_mask,
     };
     let target = match &args.material {
@@ -118,14 +128,11 @@ pub fn run(args: &Args) -> Result<(), Failure> {
         ..PhotoOptions::default()
     };
     let load_s = t0.elapsed().as_secs_f64();
-    let d = photo::decompose(
-        &renderer,
-        &nets,
-        &photo,
-        mask.as_deref(),
-        &options,
-        &mut |_| {},
-    )?;
+    let object = match &pointing {
+        Some(p) => Object::Pointed(p),
+        None => mask.as_deref().into(),
+    };
+    let d = photo::decompose(&renderer, &nets, &photo, object, &options, &mut |_| {})?;
     let t = Instant::now();
     let (material, like) = match (target, other) {
         (Some(m), _) => (m, None),
@@ -162,6 +169,7 @@ pub fn run(args: &Args) -> Result<(), Failure> {
     let report = json!({
         "photo": args.photo.display().to_string(),
         "size": [d.width, d.height],
+        "pointing": pointing_json(pointing.as_ref()),
         "crop": {"x0": d.crop.x0, "y0": d.crop.y0, "size": d.crop.size},
         "object_pixels": d.mask.iter().filter(|&&m| m).count(),
         "material": material.name,

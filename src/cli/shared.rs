@@ -352,3 +352,101 @@ pub fn report(accuracy: &Accuracy, choices: &[Option<lod::Choice>]) {
     }
     report_each("level of detail", choices);
 }
+
+/// `--box`, `--point` and `--not` of `edit` and `grid`: where the object is.
+#[derive(clap::Args, Clone, Debug, Default)]
+pub struct PointingArgs {
+    /// A box around the object, in pixels: columns X0 to X1, rows Y0 to Y1, X1 and Y1
+    /// exclusive (the cut keeps nothing outside it).
+    #[arg(long = "box", value_name = "X0,Y0,X1,Y1", allow_hyphen_values = true)]
+    pub bounds: Option<String>,
+    /// A pixel (column, row) on the object; repeatable.
+    #[arg(long = "point", value_name = "X,Y", allow_hyphen_values = true)]
+    pub points: Vec<String>,
+    /// A pixel (column, row) not on the object; repeatable.
+    #[arg(long = "not", value_name = "X,Y", allow_hyphen_values = true)]
+    pub nots: Vec<String>,
+}
+
+impl PointingArgs {
+    /// Whether none is given.
+    pub fn is_empty(&self) -> bool {
+        self.bounds.is_none() && self.points.is_empty() && self.nots.is_empty()
+    }
+
+    /// The pointing at photo number `number` (1-based, `None`: values carry no `N:`
+    /// prefix) of a `width` x `height` photo, checked; `None` if none is given for it.
+    pub fn pointing(
+        &self,
+        number: Option<usize>,
+        width: usize,
+        height: usize,
+    ) -> Result<Option<matedit::edit::photo::Pointing>, Failure> {
+        use matedit::edit::photo::Pointing;
+        use matedit::segment::Rect;
+        let mut p = Pointing::default();
+        let take = |flag: &str, value: &str, n: usize| -> Result<Option<Vec<usize>>, Failure> {
+            let bad =
+                |what: &str| Failure::from(Error::Invalid(format!("--{flag} {value}: {what}")));
+            let rest = match number {
+                None => value,
+                Some(k) => {
+                    let Some((i, rest)) = value.split_once(':') else {
+                        return Err(bad("give the photo's number first (1:X,Y for the first)"));
+                    };
+                    if i.trim().parse::<usize>().ok() != Some(k) {
+                        return Ok(None);
+                    }
+                    rest
+                }
+            };
+            let v: Vec<usize> = rest
+                .split(',')
+                .map(|s| s.trim().parse::<usize>())
+                .collect::<Result<_, _>>()
+                .map_err(|_| bad(&format!("{n} whole numbers of pixels expected")))?;
+            if v.len() != n {
+                return Err(bad(&format!("{n} whole numbers of pixels expected")));
+            }
+            Ok(Some(v))
+        };
+        if let Some(b) = &self.bounds
+            && let Some(v) = take("box", b, 4)?
+        {
+            p.bounds = Some(Rect {
+                x0: v[0],
+                y0: v[1],
+                x1: v[2],
+                y1: v[3],
+            });
+        }
+        for (values, flag, into) in [
+            (&self.points, "point", &mut p.object),
+            (&self.nots, "not", &mut p.background),
+        ] {
+            for s in values {
+                if let Some(v) = take(flag, s, 2)? {
+                    into.push([v[0], v[1]]);
+                }
+            }
+        }
+        if p.is_empty() {
+            return Ok(None);
+        }
+        p.check(width, height)
+            .map_err(|e| Failure::from(Error::Invalid(format!("--{e}"))))?;
+        Ok(Some(p))
+    }
+}
+
+/// A pointing as report.json shows it.
+pub fn pointing_json(p: Option<&matedit::edit::photo::Pointing>) -> serde_json::Value {
+    match p {
+        None => serde_json::Value::Null,
+        Some(p) => serde_json::json!({
+            "box": p.bounds.map(|b| [b.x0, b.y0, b.x1, b.y1]),
+            "points": p.object,
+            "not": p.background,
+        }),
+    }
+}

@@ -101,6 +101,12 @@ pub fn describe(stage: Stage) -> (&'static str, usize, usize, String) {
             passes,
             format!("Finding the object (pass {pass} of {passes})"),
         ),
+        Stage::Segment => (
+            "segment",
+            0,
+            1,
+            "Cutting out the object pointed at".to_string(),
+        ),
         Stage::Predict => (
             "predict",
             0,

@@ -330,8 +330,15 @@ fn the_photos_own_material_gives_it_back() {
     let renderer = Renderer::new(Device::Cpu).unwrap();
     let nets = matedit::nets::Nets::builtin().unwrap();
     let options = PhotoOptions::default();
-    let mut d =
-        photo::decompose(&renderer, &nets, &img, Some(&mask), &options, &mut |_| {}).unwrap();
+    let mut d = photo::decompose(
+        &renderer,
+        &nets,
+        &img,
+        Some(mask.as_slice()),
+        &options,
+        &mut |_| {},
+    )
+    .unwrap();
     assert!(
         d.light_factors.iter().all(|&f| f != 1.0),
         "{:?}",

@@ -40,6 +40,7 @@ mod edit_photo;
 mod fit;
 mod measured;
 mod nets;
+mod pointing;
 mod serve;
 mod synth;
 mod synth_photos;

@@ -4,10 +4,11 @@
 //! The layer renders the object at most [`RENDER_SIZE`] pixels a side; the photo gives
 //! the rest. At each of the object's pixels, with R the render of the refined
 //! decomposition (what the model explains of the photo P) and R' the render with the new
-//! material, channel by channel, the edit is R' (Y (C)^s)^detail, where Y = Y(P) / Y(R)
-//! is the ratio of luminances, C = (P / R) / Y the ratio's colour, both ratios kept within
-//! [0, [`MAX_RATIO`]] and offset by a small epsilon, and s in [0, 1] says how close R' is
-//! to R (1 where they are the same, 0 from [`SAME_SHADING`] apart). With `detail` = 1
+//! material, channel by channel, the edit is R' (Y' C^s)^detail, where Y = Y(P) / Y(R) is
+//! the ratio of luminances, C = (P / R) / Y the ratio's colour (P and R offset by a small
+//! epsilon), s in [0, 1] says how close R' is to R (1 where they are the same, 0 from
+//! [`SAME_SHADING`] apart), and Y' = min(Y, [`MAX_RATIO`])^(1 - s) Y^s: a spot brighter
+//! than the model explains (a highlight it missed) goes with the old material. With `detail` = 1
 //! (the default) the photo's own detail in brightness (small shadows, occlusion, texture,
 //! geometry finer than the nets see, the photo's full resolution) multiplies the new
 //! material's shading; its colour detail, which is mostly what the model gets wrong of the
@@ -28,7 +29,7 @@ use crate::{Accuracy, Batch, Camera, EnvMap, Image, Material, NormalMap, Rendere
 pub const RENDER_SIZE: usize = 384;
 /// The largest ratio of the photo to the refined render an edit carries over: brighter
 /// spots than that (a highlight the model missed) belong to the old material.
-pub const MAX_RATIO: f32 = 1.0e6;
+pub const MAX_RATIO: f32 = 4.0;
 /// How far apart (relative) the new material's shading may be from the old before none
 /// of the photo's colour detail is kept.
 pub const SAME_SHADING: f32 = 0.25;
@@ -158,16 +159,17 @@ impl Decomposition {
                     };
                     let a = self.alpha[i];
                     let p = *o;
-                    let y = ((luminance(p) + eps) / (luminance(r0) + eps)).clamp(0.0, MAX_RATIO);
+                    let y = (luminance(p) + eps) / (luminance(r0) + eps);
                     // how close the new shading is to the old: 1 the same, 0 from
                     // SAME_SHADING apart (relative, summed over the channels)
                     let apart: f32 = (0..3).map(|k| (r1[k] - r0[k]).abs()).sum::<f32>()
                         / (0..3).map(|k| r0[k] + eps).sum::<f32>();
                     let same = (1.0 - apart / SAME_SHADING).max(0.0);
+                    // the brightness ratio clamped as far as the material changes
+                    let y_kept = y.min(MAX_RATIO).powf(1.0 - same) * y.powf(same);
                     for k in 0..3 {
-                        let ratio = ((p[k] + eps) / (r0[k] + eps)).clamp(0.0, MAX_RATIO);
-                        let colour = ratio / y;
-                        let gain = (y * colour.powf(same)).powf(detail);
+                        let colour = ((p[k] + eps) / (r0[k] + eps)) / y;
+                        let gain = (y_kept * colour.powf(same)).powf(detail);
                         let value = (r1[k] + eps) * gain - eps;
                         o[k] = (1.0 - a) * p[k] + a * value.max(0.0);
                     }

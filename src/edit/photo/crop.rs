@@ -16,6 +16,11 @@ pub(super) fn crop_around(mask: &[bool], w: usize, h: usize) -> Crop {
         let (x, y) = (i % w, i / w);
         (x0, x1, y0, y1) = (x0.min(x), x1.max(x + 1), y0.min(y), y1.max(y + 1));
     }
+    square_around(x0, y0, x1, y1)
+}
+
+/// The square around columns `x0..x1` and rows `y0..y1`, with the nets' margin.
+pub(super) fn square_around(x0: usize, y0: usize, x1: usize, y1: usize) -> Crop {
     let side = (x1 - x0).max(y1 - y0) as f64 / (1.0 - MARGIN);
     let size = side.ceil() as usize;
     let cx = (x0 + x1) as f64 / 2.0;

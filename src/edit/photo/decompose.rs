@@ -4,14 +4,15 @@
 
 use std::time::Instant;
 
-use super::check::{check_mask, check_photo};
+use super::check::{check_mask, check_photo, single_object};
 use super::composite::{RENDER_SIZE, render};
 use super::crop::{
     crop_around, crop_image, mask_image, paste_scalar, render_grid, upsample_normals,
 };
 use super::light::match_background;
+use super::pointing::segment_object;
 use super::refine::refine_normals;
-use super::{Decomposition, PhotoOptions, Stage};
+use super::{Decomposition, Object, PhotoOptions, Stage};
 use crate::edit::fit::fit;
 use crate::edit::inputs::Inputs;
 use crate::edit::loss::psnr;
@@ -25,29 +26,37 @@ use crate::{Accuracy, EnvMap, Image, Material, NormalMap, Renderer};
 /// mask of the pass before (see [`find_object`]).
 const MASK_PASSES: usize = 3;
 
-/// Predicts and refines the decomposition of `photo` (linear RGB); `mask`, if given, is
-/// the object (else the nets find it). `progress` is called as each stage starts and after
+/// Predicts and refines the decomposition of `photo` (linear RGB); `object` says where the
+/// object is ([`Object`]: `None` or a mask converts into one). `progress` is called as each stage starts and after
 /// each refinement step (`&mut |_| {}` for none).
-pub fn decompose(
+pub fn decompose<'a>(
     renderer: &Renderer,
     nets: &Nets,
     photo: &Image,
-    mask: Option<&[bool]>,
+    object: impl Into<Object<'a>>,
     options: &PhotoOptions,
     progress: &mut dyn FnMut(Stage),
 ) -> Result<Decomposition> {
     check_photo(photo)?;
     let (w, h) = (photo.width, photo.height);
     let n = options.net_size;
-    let t = Instant::now();
+    let mut t = Instant::now();
     let found;
-    let mask = match mask {
-        Some(m) => {
+    let mut stages = Vec::new();
+    let mask = match object.into() {
+        Object::Mask(m) => {
             check_mask(m, w, h)?;
             m
         }
-        None => {
+        Object::Find => {
             found = find_object(nets, photo, n, progress)?;
+            &found
+        }
+        Object::Pointed(p) => {
+            progress(Stage::Segment);
+            found = segment_object(nets, photo, p, n)?;
+            stages.push(("segment", t.elapsed().as_secs_f64()));
+            t = Instant::now();
             &found
         }
     };
@@ -136,10 +145,11 @@ pub fn decompose(
         coverage: Vec::new(),
         reference: Image::zeros(0, 0),
         detail: options.detail,
-        stages: vec![
-            ("predict", predict_s),
-            ("refine", t.elapsed().as_secs_f64()),
-        ],
+        stages: {
+            stages.push(("predict", predict_s));
+            stages.push(("refine", t.elapsed().as_secs_f64()));
+            stages
+        },
     };
     let t = Instant::now();
     d.set_render_normals(renderer, render_normals, coverage)?;
@@ -149,7 +159,8 @@ pub fn decompose(
 
 /// The object as the nets find it on the whole photo padded to a square, at `n` x `n`:
 /// [`MASK_PASSES`] + 1 passes, each after the first on the photo normalised by the mask of
-/// the pass before; an error if what is found is empty, full, a speck or black.
+/// the pass before; an error if what is found is empty, full, a speck or black, or when no
+/// single object stands out ([`single_object`]).
 fn find_object(
     nets: &Nets,
     photo: &Image,
@@ -191,5 +202,6 @@ fn find_object(
         .ok_or_else(|| {
             invalid!("image: no object found (the nets' mask is empty, full, a speck or black); give one with --mask")
         })?;
+    single_object(&found, w, h)?;
     Ok(found)
 }

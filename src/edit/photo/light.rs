@@ -80,7 +80,7 @@ mod tests {
 
     #[test]
     fn the_light_takes_the_backgrounds_level() {
-        let mut env = EnvMap::constant(8, 16, Convention::Equirect, [2.0, 1.0, 0.5]);
+        let mut env = EnvMap::constant(8, 16, Convention::Equirect, [2.0, 1.0, 0.5]).unwrap();
         let mut photo = Image::zeros(4, 4);
         let mask: Vec<bool> = (0..16).map(|i| i < 4).collect();
         for (p, &m) in photo.pixels.iter_mut().zip(&mask) {
@@ -96,7 +96,7 @@ mod tests {
 
     #[test]
     fn a_black_background_says_nothing() {
-        let mut env = EnvMap::constant(8, 16, Convention::Equirect, [1.0; 3]);
+        let mut env = EnvMap::constant(8, 16, Convention::Equirect, [1.0; 3]).unwrap();
         let mut photo = Image::zeros(4, 4);
         let mask: Vec<bool> = (0..16).map(|i| i < 4).collect();
         for (p, &m) in photo.pixels.iter_mut().zip(&mask) {

@@ -13,7 +13,10 @@
 //! whole photo (padded to a square) find the object: the first on the photo normalised by
 //! its mean, each next on the photo normalised by the mean over the mask found before (as
 //! the nets were trained); the last pass's mask probability, bilinear at the photo's
-//! pixels, above one half. The soft mask of the composite is the
+//! pixels, above one half; refused when no single object stands out
+//! ([`check::single_object`]). Pointed at ([`Pointing`]: a box, points on the object and
+//! off it), a cut with the nets' mask for a prior finds it ([`pointing`](mod@pointing)).
+//! The soft mask of the composite is the
 //! mask averaged over each pixel's 3 x 3 neighbourhood.
 //!
 //! Files: [`check`] (the photos and masks taken), [`decompose`](mod@decompose) (nets and
@@ -27,12 +30,16 @@ pub mod composite;
 mod crop;
 pub mod decompose;
 pub mod light;
+pub mod pointing;
 mod refine;
 
 pub use crate::raster::Crop;
-pub use check::{MAX_PIXELS, MAX_SIDE, MIN_OBJECT_PIXELS, MIN_SIDE, check_mask, check_photo};
+pub use check::{
+    MAX_PIXELS, MAX_SIDE, MIN_OBJECT_PIXELS, MIN_SIDE, check_mask, check_photo, single_object,
+};
 pub use composite::{LIGHT_TOLERANCE, MAX_RATIO, RENDER_SIZE, composite};
 pub use decompose::decompose;
+pub use pointing::{Pointing, segment_object};
 
 use crate::{EnvMap, Image, Material, NormalMap};
 
@@ -125,13 +132,15 @@ pub struct Decomposition {
     pub reference: Image,
     /// How much of the photo's detail edits keep ([`PhotoOptions::detail`]).
     pub detail: f32,
-    /// Seconds per stage: "predict", "refine".
+    /// Seconds per stage: "segment" (when pointed at), "predict", "refine", "reference".
     pub stages: Vec<(&'static str, f64)>,
 }
 
 /// A stage of [`decompose`], for a progress display.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Stage {
+    /// Cutting out the object pointed at.
+    Segment,
     /// Finding the object: pass `pass` of `passes` of the normals net on the whole photo.
     Mask { pass: usize, passes: usize },
     /// The nets on the crop around the object.
@@ -140,4 +149,27 @@ pub enum Stage {
     Refine { step: usize, steps: usize },
     /// Refining the normals: `step` of `steps` done.
     Normals { step: usize, steps: usize },
+}
+
+/// Where the object is: found by the nets, given as a mask, or pointed at.
+#[derive(Clone, Copy, Debug)]
+pub enum Object<'a> {
+    /// The nets find it (refused when no single object stands out).
+    Find,
+    /// The object's pixels (row-major, the photo's size).
+    Mask(&'a [bool]),
+    /// A box and points, cut out with the nets' mask for a prior.
+    Pointed(&'a Pointing),
+}
+
+impl<'a> From<Option<&'a [bool]>> for Object<'a> {
+    fn from(mask: Option<&'a [bool]>) -> Self {
+        mask.map_or(Object::Find, Object::Mask)
+    }
+}
+
+impl<'a> From<&'a Pointing> for Object<'a> {
+    fn from(p: &'a Pointing) -> Self {
+        Object::Pointed(p)
+    }
 }
