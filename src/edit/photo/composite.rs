@@ -26,7 +26,7 @@ use crate::raster::{self, Columns};
 use crate::{Accuracy, Batch, Camera, EnvMap, Image, Material, NormalMap, Renderer, Scene};
 
 /// The most pixels a side the object is rendered at for an edit.
-pub const RENDER_SIZE: usize = 384;
+pub const RENDER_SIZE: usize = 192;
 /// The largest ratio of the photo to the refined render an edit carries over: brighter
 /// spots than that (a highlight the model missed) belong to the old material.
 pub const MAX_RATIO: f32 = 4.0;
