@@ -134,6 +134,9 @@ fn encode8(
     let mut enc = png::Encoder::new(&mut out, w, h);
     enc.set_color(color);
     enc.set_depth(png::BitDepth::Eight);
+    // fdeflate's PNG-tuned DEFLATE: a 12-megapixel mask or a photo-sized picture in a
+    // fraction of the default level's time, files a little larger
+    enc.set_compression(png::Compression::Fast);
     if srgb {
         enc.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
     }

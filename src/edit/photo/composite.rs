@@ -57,7 +57,7 @@ impl Decomposition {
         accuracy: Accuracy,
     ) -> Result<Image> {
         let env = light.unwrap_or(&self.env);
-        let new = render(renderer, &self.render_normals, env, material, accuracy)?;
+        let new = render(renderer, &self.render_normals, env, material, accuracy, true)?;
         Ok(self.transfer(photo, &new))
     }
 
@@ -72,7 +72,7 @@ impl Decomposition {
         accuracy: Accuracy,
     ) -> Result<Image> {
         let env = light.unwrap_or(&self.env);
-        let new = render(renderer, &self.render_normals, env, material, accuracy)?;
+        let new = render(renderer, &self.render_normals, env, material, accuracy, true)?;
         let mut out = Image::zeros(self.width, self.height);
         let s = self.render_normals.width;
         let f = s as f64 / self.crop.size as f64;
@@ -99,6 +99,7 @@ impl Decomposition {
             &self.env,
             &self.material,
             Accuracy::Exact,
+            true,
         )?;
         self.render_normals = normals;
         self.coverage = coverage;
@@ -166,10 +167,19 @@ impl Decomposition {
                         / (0..3).map(|k| r0[k] + eps).sum::<f32>();
                     let same = (1.0 - apart / SAME_SHADING).max(0.0);
                     // the brightness ratio clamped as far as the material changes
-                    let y_kept = y.min(MAX_RATIO).powf(1.0 - same) * y.powf(same);
+                    let y_kept = match same {
+                        0.0 => y.min(MAX_RATIO),
+                        1.0 => y,
+                        s => y.min(MAX_RATIO).powf(1.0 - s) * y.powf(s),
+                    };
                     for k in 0..3 {
                         let colour = ((p[k] + eps) / (r0[k] + eps)) / y;
-                        let gain = (y_kept * colour.powf(same)).powf(detail);
+                        let kept = match same {
+                            0.0 => y_kept,
+                            1.0 => y_kept * colour,
+                            s => y_kept * colour.powf(s),
+                        };
+                        let gain = if detail == 1.0 { kept } else { kept.powf(detail) };
                         let value = (r1[k] + eps) * gain - eps;
                         o[k] = (1.0 - a) * p[k] + a * value.max(0.0);
                     }
@@ -221,14 +231,16 @@ pub fn composite(photo: &Image, object: &Image, alpha: &[f32]) -> Image {
     out
 }
 
-/// `normals` made of `material` under `env`, seen orthographically, with `accuracy`; a
-/// sharp lobe under the continuous light (equirect maps: [`LIGHT_TOLERANCE`]).
+/// `normals` made of `material` under `env`, seen orthographically, with `accuracy`; with
+/// `continuous`, a sharp lobe under the continuous light (equirect maps:
+/// [`LIGHT_TOLERANCE`]), as edits show it.
 pub(super) fn render(
     renderer: &Renderer,
     normals: &NormalMap,
     env: &EnvMap,
     material: &Material,
     accuracy: Accuracy,
+    continuous: bool,
 ) -> Result<Image> {
     let batch = Batch::single(Scene {
         normals: normals.clone(),
@@ -236,7 +248,7 @@ pub(super) fn render(
         material: material.clone(),
         camera: Camera::Orthographic,
     })?;
-    if env.convention == crate::Convention::Equirect {
+    if continuous && env.convention == crate::Convention::Equirect {
         let details = [Some(upsampled(env, LIGHT_DETAIL))];
         let light = Integration::Tolerance(LIGHT_TOLERANCE);
         return Ok(

@@ -93,7 +93,7 @@ pub fn decompose<'a>(
     let work = inputs.at_work_size(options.work_size);
     // I' against the photo over the object, at the working size, with the given normals
     let judge = |normals: &NormalMap, m: &Material, e: &EnvMap| -> Result<f64> {
-        let img = render(renderer, normals, e, m, Accuracy::Exact)?;
+        let img = render(renderer, normals, e, m, Accuracy::Exact, false)?;
         Ok(psnr(&img, &work.target, &work.mask))
     };
     let psnr_predicted = judge(&work.normals, &p.material, &p.env)?;
