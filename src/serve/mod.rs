@@ -17,6 +17,7 @@
 //! (decoding, decomposition, edits) and `reply` shapes the answers and errors.
 
 mod events;
+mod pointing;
 mod reply;
 mod routes;
 mod store;
@@ -34,6 +35,7 @@ use crate::nets::Nets;
 use crate::{Device, Renderer};
 use store::Store;
 
+pub use pointing::MAX_POINTS;
 pub use work::{PREVIEW_SIDE, PREVIEW_TOLERANCE};
 
 /// The server's settings.
@@ -78,6 +80,8 @@ struct App {
     /// Presets' sphere pictures, rendered on first request.
     spheres: Mutex<HashMap<String, Arc<Vec<u8>>>>,
     jobs: Semaphore,
+    /// Masks cut out for a pointing ([`pointing`]) at once.
+    segments: Semaphore,
 }
 
 /// A running server; dropping it stops it.
@@ -135,6 +139,7 @@ pub fn start(config: Config, addr: &str) -> Result<Handle> {
         .map_err(|e| Error::Invalid(format!("serve: {addr}: {e}")))?;
     let app = Arc::new(App {
         jobs: Semaphore::new(config.jobs),
+        segments: Semaphore::new(2),
         config,
         renderer,
         nets,
