@@ -329,6 +329,7 @@ def test_pointing_in_a_browser(tmp_path):
         from selenium.webdriver.chrome.service import Service
         from selenium.webdriver.common.action_chains import ActionChains
         from selenium.webdriver.common.by import By
+        from selenium.webdriver.common.keys import Keys
     except ImportError:
         unavailable("selenium is not installed (pip install selenium)")
     try:
@@ -371,7 +372,7 @@ def test_pointing_in_a_browser(tmp_path):
         wait_for("the photo to point at", lambda: state() == "pointing", 30)
         canvas = driver.find_element(By.ID, "point-canvas")
         wait_for("the photo", lambda: js("const i = document.getElementById('point-photo');"
-                                         " return i.complete && i.naturalWidth"), 30)
+                                         " return i.complete && i.naturalWidth"), READY_TIMEOUT)
 
         # as it is: the nets find two objects and the refusal asks for a box
         driver.find_element(By.ID, "analyse").click()
@@ -391,7 +392,7 @@ def test_pointing_in_a_browser(tmp_path):
             .move_to_element_with_offset(canvas, *at(60, 60)) \
             .move_to_element_with_offset(canvas, *at(124, 124)).release().perform()
         stage = driver.find_element(By.ID, "point-stage")
-        wait_for("the mask", lambda: stage.get_attribute("data-mask") == "shown", 30)
+        wait_for("the mask", lambda: stage.get_attribute("data-mask") == "shown", EDIT_TIMEOUT)
         assert not error.is_displayed(), error.text
         first = int(stage.get_attribute("data-pixels"))
         cw, ch, b64 = js(READ_CANVAS, canvas)
@@ -400,19 +401,23 @@ def test_pointing_in_a_browser(tmp_path):
         half = cw // 2
         assert tinted[:, :half].mean() > 0.2, tinted[:, :half].mean()
         assert tinted[:, half:].mean() < 0.01, tinted[:, half:].mean()
+        # a shift-click in the torus's hole: not the object, a new mask; undo takes it back
+        ActionChains(driver).move_to_element_with_offset(canvas, *at(64, 64)).key_down(Keys.SHIFT).click() \
+            .key_up(Keys.SHIFT).perform()
+        info = driver.find_element(By.ID, "point-info")
+        wait_for("the point", lambda: "1 off" in info.text, 5)
+        wait_for("the refined mask", lambda: stage.get_attribute("data-mask") == "shown", EDIT_TIMEOUT)
         shot = Path(os.environ.get("MATEDIT_POINTING_SCREENSHOT") or tmp_path / "pointing.png")
         shot.parent.mkdir(parents=True, exist_ok=True)
         driver.save_screenshot(str(shot))
-
-        # a click on the object refines the mask; undo takes it back
-        ActionChains(driver).move_to_element_with_offset(canvas, *at(64, 30)).click().perform()
-        wait_for("the point", lambda: "1 on" in driver.find_element(By.ID, "point-info").text, 10)
-        wait_for("the refined mask", lambda: stage.get_attribute("data-mask") == "shown", 30)
-        assert int(stage.get_attribute("data-pixels")) > 0
         driver.find_element(By.ID, "point-undo").click()
-        wait_for("the undone point", lambda: "0 on" in driver.find_element(By.ID, "point-info").text, 10)
+        wait_for("the undone point", lambda: "0 off" in info.text, 5)
         wait_for("the mask again", lambda: stage.get_attribute("data-mask") == "shown"
-                 and int(stage.get_attribute("data-pixels")) == first, 30)
+                 and int(stage.get_attribute("data-pixels")) == first, EDIT_TIMEOUT)
+        # a plain click on the torus: a point on the object
+        ActionChains(driver).move_to_element_with_offset(canvas, *at(64, 12)).click().perform()
+        wait_for("the point on it", lambda: "1 on" in info.text, 5)
+        wait_for("its mask", lambda: stage.get_attribute("data-mask") == "shown", EDIT_TIMEOUT)
 
         # analysed with the box, then edited
         driver.find_element(By.ID, "analyse").click()

@@ -280,6 +280,7 @@ async function requestSegment() {
   sg.again = false;
   const seq = ++sg.seq;
   stage.dataset.mask = "pending";
+  drawPointer();                        // the new box and points at once, the mask when cut
   try {
     const res = await api(photoUrl(held.id, "segment"),
       { method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify(promptBody()) });
