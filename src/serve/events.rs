@@ -15,10 +15,22 @@ use super::store::{Photo, Status};
 use super::work;
 use crate::edit::photo::PhotoOptions;
 
-/// Decomposes a photo on the blocking pool when a worker is free; its status follows.
-pub(super) async fn run_job(app: Arc<App>, photo: Arc<Photo>, upload: work::Upload, name: String) {
+/// Decomposes a queued photo ([`Photo::queue`]) with its object at `target` on the blocking
+/// pool when a worker is free; its status follows. The decoded upload is let go once the
+/// decomposition has succeeded.
+pub(super) async fn run_job(app: Arc<App>, photo: Arc<Photo>, target: work::Target) {
+    let name = photo.name.clone();
     let Ok(_permit) = app.jobs.acquire().await else {
         return;
+    };
+    let image = match photo.source() {
+        Ok(s) => s.photo.clone(),
+        Err(e) => {
+            photo
+                .status
+                .send_replace(Status::Failed(format!("{name}: {}", e.1)));
+            return;
+        }
     };
     let (a, p) = (app.clone(), photo.clone());
     let result = tokio::task::spawn_blocking(move || {
@@ -26,15 +38,22 @@ pub(super) async fn run_job(app: Arc<App>, photo: Arc<Photo>, upload: work::Uplo
             steps: a.config.steps,
             ..PhotoOptions::default()
         };
-        work::analyse(&a.renderer, &a.nets, upload, &options, &mut |stage| {
-            let (stage, done, total, message) = work::describe(stage);
-            p.status.send_replace(Status::Progress {
-                stage,
-                done,
-                total,
-                message,
-            });
-        })
+        work::analyse(
+            &a.renderer,
+            &a.nets,
+            image,
+            &target,
+            &options,
+            &mut |stage| {
+                let (stage, done, total, message) = work::describe(stage);
+                p.status.send_replace(Status::Progress {
+                    stage,
+                    done,
+                    total,
+                    message,
+                });
+            },
+        )
     })
     .await;
     let status = match result {
@@ -42,6 +61,9 @@ pub(super) async fn run_job(app: Arc<App>, photo: Arc<Photo>, upload: work::Uplo
             let report = analysed.report.clone();
             if let Ok(mut r) = photo.result.lock() {
                 *r = Some(Arc::new(analysed));
+            }
+            if let Ok(mut s) = photo.source.lock() {
+                *s = None;
             }
             Status::Ready(report)
         }
@@ -70,6 +92,14 @@ pub(super) async fn events(
             }
             let status = rx.borrow_and_update().clone();
             let (event, last) = match status {
+                Status::Waiting => (
+                    Event::default().event("progress").data(
+                        json!({"stage": "waiting", "done": 0, "total": 1,
+                            "message": "Waiting for the analysis to be asked for"})
+                        .to_string(),
+                    ),
+                    false,
+                ),
                 Status::Progress {
                     stage,
                     done,

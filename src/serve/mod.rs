@@ -9,14 +9,18 @@
 //! Safe by default: loopback unless told otherwise; uploads limited in bytes (413) and in
 //! pixels (413, read from the headers before decoding); only JPEG, PNG and EXR accepted
 //! (415); photos live in memory under random ids that only their uploader is told, the
-//! oldest dropped past a count; a failed job keeps nothing but its message; no request
-//! names a file on the machine. Each request is logged as one line on stderr.
+//! oldest dropped past a count; a photo can be held until it is pointed at (a box and
+//! points, checked against it; its mask cut out before any decomposition); a failed job
+//! keeps its message and the photo, to be pointed at again; no request names a file on
+//! the machine. Each request is logged as one line on stderr.
 //!
 //! Here: the settings and start-up. `routes` answers the requests, `store` keeps the
-//! photos, `events` runs their decompositions and streams the progress, `work` computes
+//! photos, `pointing` takes the box and points, `events` runs their decompositions and
+//! streams the progress, `work` computes
 //! (decoding, decomposition, edits) and `reply` shapes the answers and errors.
 
 mod events;
+mod pointing;
 mod reply;
 mod routes;
 mod store;
@@ -34,6 +38,7 @@ use crate::nets::Nets;
 use crate::{Device, Renderer};
 use store::Store;
 
+pub use pointing::MAX_POINTS;
 pub use work::{PREVIEW_SIDE, PREVIEW_TOLERANCE};
 
 /// The server's settings.
@@ -78,6 +83,8 @@ struct App {
     /// Presets' sphere pictures, rendered on first request.
     spheres: Mutex<HashMap<String, Arc<Vec<u8>>>>,
     jobs: Semaphore,
+    /// Masks cut out for a pointing ([`pointing`]) at once.
+    segments: Semaphore,
 }
 
 /// A running server; dropping it stops it.
@@ -135,6 +142,7 @@ pub fn start(config: Config, addr: &str) -> Result<Handle> {
         .map_err(|e| Error::Invalid(format!("serve: {addr}: {e}")))?;
     let app = Arc::new(App {
         jobs: Semaphore::new(config.jobs),
+        segments: Semaphore::new(2),
         config,
         renderer,
         nets,

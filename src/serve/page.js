@@ -1,6 +1,8 @@
 "use strict";
-// The page of `matedit serve`: upload a photo, follow its decomposition (server-sent
-// events), pick a material (a preset or another photo's), and edit with light sliders.
+// The page of `matedit serve`: upload a photo, point at its object (a box and points,
+// the mask cut out by the server drawn over the photo), follow its decomposition
+// (server-sent events), pick a material (a preset or another photo's), and edit with
+// light sliders.
 
 const $ = (id) => document.getElementById(id);
 const STAGE_W = 760, STAGE_H = 440;   // the before/after box the photo is fitted into
@@ -8,6 +10,11 @@ const STAGE_W = 760, STAGE_H = 440;   // the before/after box the photo is fitte
 const state = {
   info: null,
   photo: null,          // {id, width, height, report} once decomposed
+  held: null,           // {id, width, height, name}: uploaded, waiting to be pointed at
+  prompt: { box: null, point: [], not: [] },   // in the photo's pixels
+  history: [],          // what Undo takes back: "box", "point" or "not"
+  segment: { busy: false, again: false, seq: 0 },   // at most one mask cut in flight
+  maskImage: null,      // the last mask cut out (an <img> of the photo's size)
   material: null,       // the request's material part: {material: NAME} or {like: ID}
   uploadGen: 0,         // bumps per main upload: events of older uploads are ignored
   likeGen: 0,           // the same for the "material from another photo" upload
@@ -49,13 +56,13 @@ async function api(url, opts) {
   throw new Error(msg || `The server answered ${res.status} ${res.statusText}.`);
 }
 
-// POST a file; resolves to {id, width, height}
-async function upload(file) {
+// POST a file (query: "?hold=1" to point at it first); resolves to {id, width, height}
+async function upload(file, query = "") {
   const max = state.info && state.info.max_upload_bytes;
   if (max && file.size > max) throw new Error(`${file.name} is ${mb(file.size)}; the limit is ${mb(max)}.`);
   // header values must be ISO-8859-1: escape other names (the extension stays readable)
   const name = /^[\x20-\x7e]*$/.test(file.name) ? file.name : encodeURIComponent(file.name);
-  const res = await api("/api/photos", { method: "POST", body: file, headers: { "X-Filename": name } });
+  const res = await api(`/api/photos${query}`, { method: "POST", body: file, headers: { "X-Filename": name } });
   return res.json();
 }
 
@@ -81,7 +88,7 @@ function follow(id, onProgress) {
 }
 
 // each stage's share of the progress bar
-const SPANS = { queued: [0, 0.02], mask: [0.02, 0.12], predict: [0.12, 0.2], refine: [0.2, 0.95], normals: [0.95, 1] };
+const SPANS = { queued: [0, 0.02], segment: [0.02, 0.12], mask: [0.02, 0.12], predict: [0.12, 0.2], refine: [0.2, 0.95], normals: [0.95, 1] };
 
 function showProgress(p) {
   const bar = $("progress"), [a, b] = SPANS[p.stage] || [0, 1];
@@ -99,28 +106,39 @@ function setLink(a, href, name) {
 
 // ---------- the main photo
 
+// the server's messages name the command line's flags: the page's words instead
+function forPage(msg) {
+  return msg.replace(/: give --box or --mask\.?$/, ": drag a box around the object on the photo (click on it to add points), then press Analyse again.")
+    .replace(/give --point on it or --mask/, "click on it");
+}
+
+// a photo fitted into the stage box, keeping its aspect: [width, height, scale]
+function fitted(width, height) {
+  const s = Math.min(STAGE_W / width, STAGE_H / height);
+  return [Math.round(width * s), Math.round(height * s), s];
+}
+
 async function openPhoto(file) {
   const gen = ++state.uploadGen;
   showError("");
   state.photo = null;
+  state.held = null;
   document.body.dataset.photo = "";
   resetEditor();
   $("decomp").hidden = true;
   $("editor").hidden = true;
+  $("pointer").hidden = true;
   document.body.dataset.state = "working";
   $("file").disabled = true;
   $("progress-box").hidden = false;
   showProgress({ message: `Uploading ${file.name}…` });
   try {
-    const photo = await upload(file);
-    showProgress({ stage: "queued", message: "Waiting for the server…" });
-    const report = await follow(photo.id, (p) => gen === state.uploadGen && showProgress(p));
+    const photo = await upload(file, "?hold=1");
     if (gen !== state.uploadGen) return;
-    state.photo = { ...photo, report };
-    showDecomposition();
-    document.body.dataset.state = "ready";
-    showProgress({ done: 1, total: 1, message: `Ready: ${photo.width} × ${photo.height}.` });
-    if (state.material) requestFull();
+    state.held = { ...photo, name: file.name };
+    showPointer();
+    document.body.dataset.state = "pointing";
+    showProgress({ done: 0, total: 1, message: `${photo.width} × ${photo.height}: point at the object, then Analyse.` });
   } catch (e) {
     if (gen !== state.uploadGen) return;
     document.body.dataset.state = "failed";
@@ -130,6 +148,215 @@ async function openPhoto(file) {
   } finally {
     if (gen === state.uploadGen) { $("file").disabled = false; $("file").value = ""; }
   }
+}
+
+// decompose the held photo with the prompt (if any); on failure it can be pointed at again
+async function analyse() {
+  const held = state.held;
+  if (!held) return;
+  const gen = state.uploadGen;
+  showError("");
+  document.body.dataset.state = "working";
+  showProgress({ stage: "queued", message: "Waiting for the server…" });
+  try {
+    await api(photoUrl(held.id, "analyse"),
+      { method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify(promptBody()) });
+    const report = await follow(held.id, (p) => gen === state.uploadGen && showProgress(p));
+    if (gen !== state.uploadGen) return;
+    state.photo = { id: held.id, width: held.width, height: held.height, report };
+    state.held = null;
+    $("pointer").hidden = true;
+    showDecomposition();
+    document.body.dataset.state = "ready";
+    showProgress({ done: 1, total: 1, message: `Ready: ${held.width} × ${held.height}.` });
+    if (state.material) requestFull();
+  } catch (e) {
+    if (gen !== state.uploadGen) return;
+    document.body.dataset.state = "pointing";
+    showError(forPage(e.message));
+    $("status").textContent = "Not analysed: point at the object and try again.";
+    $("progress").value = 0;
+  }
+}
+
+// ---------- pointing at the object
+
+function promptBody() {
+  const p = state.prompt, body = {};
+  if (p.box) body.box = p.box;
+  if (p.point.length) body.point = p.point;
+  if (p.not.length) body.not = p.not;
+  return body;
+}
+
+function showPointer() {
+  const { id, width, height } = state.held;
+  const [w, h] = fitted(width, height);
+  const stage = $("point-stage"), canvas = $("point-canvas");
+  stage.style.width = `${w}px`;
+  stage.style.height = `${h}px`;
+  const dpr = window.devicePixelRatio || 1;
+  canvas.width = Math.round(w * dpr);
+  canvas.height = Math.round(h * dpr);
+  $("point-photo").src = photoUrl(id, "photo.png");
+  state.prompt = { box: null, point: [], not: [] };
+  state.history = [];
+  state.maskImage = null;
+  state.segment.seq++;
+  stage.dataset.mask = "none";
+  $("pointer").hidden = false;
+  drawPointer();
+}
+
+// the mask (tinted), the box and the points over the photo
+function drawPointer(drag) {
+  const canvas = $("point-canvas"), g = canvas.getContext("2d");
+  if (!state.held) return;
+  const k = canvas.width / state.held.width;   // canvas pixels per photo pixel
+  g.clearRect(0, 0, canvas.width, canvas.height);
+  if (state.maskImage) {
+    // white on the object: kept where the mask is, tinted, half transparent
+    const tint = document.createElement("canvas");
+    tint.width = canvas.width;
+    tint.height = canvas.height;
+    const t = tint.getContext("2d");
+    t.drawImage(state.maskImage, 0, 0, tint.width, tint.height);
+    const d = t.getImageData(0, 0, tint.width, tint.height), px = d.data;
+    for (let i = 0; i < px.length; i += 4) {
+      const a = px[i];
+      px[i] = 80; px[i + 1] = 170; px[i + 2] = 255; px[i + 3] = a * 0.5;
+    }
+    t.putImageData(d, 0, 0);
+    g.drawImage(tint, 0, 0);
+  }
+  const dpr = window.devicePixelRatio || 1;
+  const box = drag || state.prompt.box;
+  if (box) {
+    g.lineWidth = 2 * dpr;
+    g.setLineDash([6 * dpr, 4 * dpr]);
+    g.strokeStyle = "#e3aa4f";
+    g.strokeRect(box[0] * k, box[1] * k, (box[2] - box[0]) * k, (box[3] - box[1]) * k);
+    g.setLineDash([]);
+  }
+  for (const [list, colour] of [[state.prompt.point, "#4fd17a"], [state.prompt.not, "#e0605a"]]) {
+    for (const [x, y] of list) {
+      g.beginPath();
+      g.arc((x + 0.5) * k, (y + 0.5) * k, 5 * dpr, 0, 2 * Math.PI);
+      g.fillStyle = colour;
+      g.fill();
+      g.lineWidth = 1.5 * dpr;
+      g.strokeStyle = "#000";
+      g.stroke();
+    }
+  }
+  const p = state.prompt;
+  $("point-info").textContent = (p.box ? "box" : "no box") +
+    ` · ${p.point.length} on · ${p.not.length} off`;
+  $("analyse").textContent = p.box || p.point.length ? "Analyse the marked object" : "Analyse (find the object)";
+}
+
+// the photo pixel under a mouse event on the canvas
+function photoPixel(e) {
+  const r = $("point-canvas").getBoundingClientRect(), { width, height } = state.held;
+  const x = Math.floor(((e.clientX - r.left) / r.width) * width);
+  const y = Math.floor(((e.clientY - r.top) / r.height) * height);
+  return [Math.min(width - 1, Math.max(0, x)), Math.min(height - 1, Math.max(0, y))];
+}
+
+// ask for the mask of the prompt; one in flight, the latest prompt next
+async function requestSegment() {
+  const sg = state.segment, held = state.held, stage = $("point-stage");
+  if (!held) return;
+  const p = state.prompt;
+  if (!p.box && !p.point.length) {     // nothing to cut out from
+    sg.seq++;
+    state.maskImage = null;
+    stage.dataset.mask = "none";
+    drawPointer();
+    return;
+  }
+  if (sg.busy) { sg.again = true; return; }
+  sg.busy = true;
+  sg.again = false;
+  const seq = ++sg.seq;
+  stage.dataset.mask = "pending";
+  drawPointer();                        // the new box and points at once, the mask when cut
+  try {
+    const res = await api(photoUrl(held.id, "segment"),
+      { method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify(promptBody()) });
+    const pixels = res.headers.get("x-object-pixels");
+    const img = new Image();
+    img.src = URL.createObjectURL(await res.blob());
+    try { await img.decode(); } finally { URL.revokeObjectURL(img.src); }
+    if (seq === sg.seq && held === state.held) {
+      state.maskImage = img;
+      stage.dataset.mask = "shown";
+      stage.dataset.pixels = pixels || "";
+      showError("");
+      drawPointer();
+    }
+  } catch (e) {
+    if (seq === sg.seq && held === state.held) {
+      state.maskImage = null;
+      stage.dataset.mask = "error";
+      showError(forPage(e.message));
+      drawPointer();
+    }
+  } finally {
+    sg.busy = false;
+    if (sg.again) requestSegment();
+  }
+}
+
+function wirePointer() {
+  const canvas = $("point-canvas");
+  let start = null;   // [photo pixel, client x, client y] of a press
+  const dragged = (e) => start && Math.hypot(e.clientX - start[1], e.clientY - start[2]) > 4;
+  const boxOf = (e) => {
+    const [a, b] = [start[0], photoPixel(e)];
+    return [Math.min(a[0], b[0]), Math.min(a[1], b[1]), Math.max(a[0], b[0]) + 1, Math.max(a[1], b[1]) + 1];
+  };
+  canvas.addEventListener("pointerdown", (e) => {
+    if (!state.held || e.button !== 0) return;
+    canvas.setPointerCapture(e.pointerId);
+    start = [photoPixel(e), e.clientX, e.clientY];
+  });
+  canvas.addEventListener("pointermove", (e) => { if (dragged(e)) drawPointer(boxOf(e)); });
+  canvas.addEventListener("pointerup", (e) => {
+    if (!start) return;
+    const p = state.prompt;
+    if (dragged(e)) {
+      p.box = boxOf(e);
+      // points on the object outside the new box would be refused
+      p.point = p.point.filter(([x, y]) => x >= p.box[0] && x < p.box[2] && y >= p.box[1] && y < p.box[3]);
+      state.history = state.history.filter((h) => h !== "box");
+      state.history.push("box");
+    } else {
+      const kind = e.shiftKey || $("point-not").checked ? "not" : "point";
+      p[kind].push(start[0]);
+      state.history.push(kind);
+    }
+    start = null;
+    requestSegment();
+  });
+  canvas.addEventListener("pointercancel", () => { start = null; drawPointer(); });
+  $("point-undo").addEventListener("click", () => {
+    const p = state.prompt;
+    // the last action's item, skipping what a new box already dropped
+    while (state.history.length) {
+      const h = state.history.pop();
+      if (h === "box") { p.box = null; break; }
+      if (p[h].length) { p[h].pop(); break; }
+    }
+    requestSegment();
+  });
+  $("point-clear").addEventListener("click", () => {
+    state.prompt = { box: null, point: [], not: [] };
+    state.history = [];
+    showError("");
+    requestSegment();
+  });
+  $("analyse").addEventListener("click", analyse);
 }
 
 function showDecomposition() {
@@ -144,9 +371,9 @@ function showDecomposition() {
   $("report").textContent = `I′ PSNR ${db(report.psnr_predicted_db)} predicted → ${db(report.psnr_refined_db)} refined` +
     ` · ${report.object_pixels ?? "?"} object pixels` + (secs.length ? ` · ${Math.max(...secs).toFixed(1)} s` : "");
   // fit the photo into the stage box, keeping its aspect
-  const s = Math.min(STAGE_W / width, STAGE_H / height);
-  $("stage").style.width = `${Math.round(width * s)}px`;
-  $("stage").style.height = `${Math.round(height * s)}px`;
+  const [w, h] = fitted(width, height);
+  $("stage").style.width = `${w}px`;
+  $("stage").style.height = `${h}px`;
   $("before").src = photoUrl(id, "photo.png");
   $("decomp").hidden = false;
   $("editor").hidden = false;
@@ -313,6 +540,7 @@ async function openLike(file) {
 // ---------- wiring
 
 function wire() {
+  wirePointer();
   $("error").addEventListener("click", () => showError(""));
   $("file").addEventListener("change", (e) => { if (e.target.files[0]) openPhoto(e.target.files[0]); });
   $("like-file").addEventListener("change", (e) => { if (e.target.files[0]) openLike(e.target.files[0]); });

@@ -1,5 +1,5 @@
 //! What the server answers with: JSON and file bodies, and every failure as an HTTP error
-//! carrying its message as JSON.
+//! carrying its message as JSON (work on the blocking pool included).
 
 use axum::http::{StatusCode, header};
 use axum::response::{IntoResponse, Response};
@@ -55,4 +55,16 @@ pub(super) fn poisoned<T>(_: T) -> ApiError {
         StatusCode::INTERNAL_SERVER_ERROR,
         "internal error: a lock was poisoned".into(),
     )
+}
+
+/// Runs `f` on the blocking pool.
+pub(super) async fn blocking<T: Send + 'static>(
+    f: impl FnOnce() -> T + Send + 'static,
+) -> std::result::Result<T, ApiError> {
+    tokio::task::spawn_blocking(f).await.map_err(|e| {
+        ApiError(
+            StatusCode::INTERNAL_SERVER_ERROR,
+            format!("internal error: {e}"),
+        )
+    })
 }

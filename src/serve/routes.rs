@@ -16,7 +16,8 @@ use serde_json::json;
 
 use super::App;
 use super::events::{events, run_job};
-use super::reply::{ApiError, bytes, json_body, page, poisoned};
+use super::pointing::{self, Prompt};
+use super::reply::{ApiError, blocking, bytes, json_body, page, poisoned};
 use super::store::Photo;
 use super::work::{self, PREVIEW_SIDE};
 use crate::Material;
@@ -41,6 +42,8 @@ pub(super) fn router(app: Arc<App>) -> Router {
         .route("/api/photos", post(upload))
         .route("/api/photos/{id}/events", get(events))
         .route("/api/photos/{id}/edit", post(edit))
+        .route("/api/photos/{id}/segment", post(pointing::segment))
+        .route("/api/photos/{id}/analyse", post(pointing::analyse))
         .route("/api/photos/{id}/{file}", get(photo_file))
         .fallback(|| async { ApiError(StatusCode::NOT_FOUND, "no such page".into()) })
         .layer(middleware::from_fn(log))
@@ -58,18 +61,6 @@ async fn log(req: Request, next: Next) -> Response {
         t.elapsed().as_secs_f64() * 1e3
     );
     res
-}
-
-/// Runs `f` on the blocking pool.
-async fn blocking<T: Send + 'static>(
-    f: impl FnOnce() -> T + Send + 'static,
-) -> std::result::Result<T, ApiError> {
-    tokio::task::spawn_blocking(f).await.map_err(|e| {
-        ApiError(
-            StatusCode::INTERNAL_SERVER_ERROR,
-            format!("internal error: {e}"),
-        )
-    })
 }
 
 /// `GET /api/info`: the presets, the limits and the device.
@@ -130,7 +121,9 @@ async fn preset_file(
 }
 
 /// `POST /api/photos`: a photo as the body (its name in `x-filename`), decoded within the
-/// limits and queued for decomposition; answers its id and size.
+/// limits and queued for decomposition, with the object pointed at by the query
+/// ([`Prompt::from_query`]), or held until `analyse` asks for it (`hold=1`); answers its
+/// id and size.
 async fn upload(
     State(app): State<Arc<App>>,
     headers: HeaderMap,
@@ -154,6 +147,13 @@ async fn upload(
             ),
         )
     };
+    let (prompt, held) = Prompt::from_query(req.uri().query())?;
+    if held && prompt.pointing(usize::MAX, usize::MAX)?.is_some() {
+        return Err(ApiError(
+            StatusCode::BAD_REQUEST,
+            "upload: a held photo is pointed at when its analysis is asked for".into(),
+        ));
+    }
     if let Some(n) = headers
         .get(header::CONTENT_LENGTH)
         .and_then(|v| v.to_str().ok()?.parse::<usize>().ok())
@@ -181,9 +181,16 @@ async fn upload(
         work::Refusal::Bad(m) => ApiError(StatusCode::BAD_REQUEST, m),
     })?;
     let (w, h) = (upload.photo.width, upload.photo.height);
-    let photo = Arc::new(Photo::queued());
+    let target = if held {
+        None
+    } else {
+        Some(prompt.target(&upload)?)
+    };
+    let photo = Arc::new(Photo::new(name, upload, held));
     let id = app.photos.add(photo.clone(), app.config.max_photos)?;
-    tokio::spawn(run_job(app, photo, upload, name));
+    if let Some(target) = target {
+        tokio::spawn(run_job(app, photo, target));
+    }
     Ok((
         StatusCode::ACCEPTED,
         json_body(&json!({"id": id, "width": w, "height": h})),
@@ -191,11 +198,18 @@ async fn upload(
         .into_response())
 }
 
-/// `GET /api/photos/{id}/{file}`: report.json or one of the decomposition's pictures.
+/// `GET /api/photos/{id}/{file}`: report.json or one of the decomposition's pictures;
+/// photo.png also before the decomposition is done.
 async fn photo_file(
     State(app): State<Arc<App>>,
     Path((id, file)): Path<(String, String)>,
 ) -> std::result::Result<Response, ApiError> {
+    if file == "photo.png"
+        && let Ok(source) = app.photos.find(&id)?.source()
+    {
+        let png = blocking(move || work::photo_png(&source.photo)).await??;
+        return Ok(bytes("image/png", png));
+    }
     let a = app.photos.ready(&id)?;
     if file == "report.json" {
         return Ok(bytes(

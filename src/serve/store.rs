@@ -1,6 +1,7 @@
 //! The uploaded photos, in memory: each under a random id that only its uploader is told,
-//! the oldest dropped past a count, with its decomposition's status and, once ready, its
-//! result.
+//! the oldest dropped past a count, with its decomposition's status, the decoded photo
+//! until its decomposition succeeds (to be pointed at, and analysed again after a
+//! failure) and, once ready, its result.
 
 use std::collections::{HashMap, VecDeque};
 use std::sync::{Arc, Mutex};
@@ -15,6 +16,8 @@ use super::work;
 /// Where a photo's decomposition is.
 #[derive(Clone)]
 pub(super) enum Status {
+    /// Held until its analysis is asked for (the page points at the object first).
+    Waiting,
     Progress {
         stage: &'static str,
         done: usize,
@@ -25,25 +28,63 @@ pub(super) enum Status {
     Failed(String),
 }
 
-/// An uploaded photo: its decomposition's status and, when ready, its result.
+/// An uploaded photo: the client's name for it (messages only), its decomposition's
+/// status, the decoded upload until the decomposition succeeds and, when ready, its result.
 pub(super) struct Photo {
+    pub(super) name: String,
     pub(super) status: watch::Sender<Status>,
+    pub(super) source: Mutex<Option<Arc<work::Upload>>>,
     pub(super) result: Mutex<Option<Arc<work::Analysed>>>,
 }
 
+/// The status of a photo waiting for a worker.
+pub(super) fn queued() -> Status {
+    Status::Progress {
+        stage: "queued",
+        done: 0,
+        total: 1,
+        message: "Waiting for a free worker".into(),
+    }
+}
+
 impl Photo {
-    /// A photo waiting for a worker.
-    pub(super) fn queued() -> Self {
-        let (status, _) = watch::channel(Status::Progress {
-            stage: "queued",
-            done: 0,
-            total: 1,
-            message: "Waiting for a free worker".into(),
-        });
+    /// A photo from `upload`, waiting for a worker, or held until its analysis is asked
+    /// for.
+    pub(super) fn new(name: String, upload: work::Upload, held: bool) -> Self {
+        let (status, _) = watch::channel(if held { Status::Waiting } else { queued() });
         Photo {
+            name,
             status,
+            source: Mutex::new(Some(Arc::new(upload))),
             result: Mutex::new(None),
         }
+    }
+
+    /// The decoded upload, until the decomposition has succeeded.
+    pub(super) fn source(&self) -> std::result::Result<Arc<work::Upload>, ApiError> {
+        self.source
+            .lock()
+            .map_err(poisoned)?
+            .clone()
+            .ok_or_else(|| {
+                ApiError(
+                    StatusCode::CONFLICT,
+                    "the photo is analysed already: upload it again to point at another object"
+                        .into(),
+                )
+            })
+    }
+
+    /// Queues the photo for its analysis if it is held or its last one failed; false if
+    /// one is under way or done.
+    pub(super) fn queue(&self) -> bool {
+        self.status.send_if_modified(|s| {
+            let free = matches!(s, Status::Waiting | Status::Failed(_));
+            if free {
+                *s = queued();
+            }
+            free
+        })
     }
 }
 
@@ -113,8 +154,15 @@ impl Store {
     /// The decomposition of the photo under `id`, once it is done.
     pub(super) fn ready(&self, id: &str) -> std::result::Result<Arc<work::Analysed>, ApiError> {
         let photo = self.find(id)?;
-        if let Status::Failed(m) = &*photo.status.borrow() {
-            return Err(ApiError(StatusCode::CONFLICT, m.clone()));
+        match &*photo.status.borrow() {
+            Status::Failed(m) => return Err(ApiError(StatusCode::CONFLICT, m.clone())),
+            Status::Waiting => {
+                return Err(ApiError(
+                    StatusCode::CONFLICT,
+                    "the photo waits for its analysis to be asked for".into(),
+                ));
+            }
+            _ => {}
         }
         let r = photo.result.lock().map_err(poisoned)?.clone();
         r.ok_or_else(|| {

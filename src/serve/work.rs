@@ -3,8 +3,9 @@
 //! at full size or as a preview through the levels of detail.
 
 use std::path::Path;
+use std::sync::Arc;
 
-use crate::edit::photo::{self, Crop, Decomposition, PhotoOptions, Stage};
+use crate::edit::photo::{self, Crop, Decomposition, Object, PhotoOptions, Pointing, Stage};
 use crate::error::{Error, Result};
 use crate::io::png::{Preview, Tonemap};
 use crate::nets::Nets;
@@ -24,8 +25,64 @@ pub const SPHERE_SIDE: usize = 96;
 /// A decoded upload: the photo (linear RGB) and, for a PNG with transparency, its alpha as
 /// the object's mask.
 pub struct Upload {
-    pub photo: Image,
+    pub photo: Arc<Image>,
     pub mask: Option<Vec<bool>>,
+}
+
+/// Where the object is for an analysis: found by the nets, a mask (the photo's size), or
+/// pointed at.
+pub enum Target {
+    Find,
+    Mask(Vec<bool>),
+    Pointed(Pointing),
+}
+
+impl Target {
+    fn object(&self) -> Object<'_> {
+        match self {
+            Target::Find => Object::Find,
+            Target::Mask(m) => Object::Mask(m),
+            Target::Pointed(p) => Object::Pointed(p),
+        }
+    }
+}
+
+/// The object's mask from `pointing` ([`photo::segment_object`]) as a PNG of the photo's
+/// size, with its count of pixels.
+pub fn segment_png(nets: &Nets, photo: &Image, pointing: &Pointing) -> Result<(Vec<u8>, usize)> {
+    let n = PhotoOptions::default().net_size;
+    let mask = photo::segment_object(nets, photo, pointing, n)?;
+    let count = mask.iter().filter(|&&m| m).count();
+    Ok((
+        crate::io::png::encode_mask(photo.width, photo.height, &mask)?,
+        count,
+    ))
+}
+
+/// A mask sent as a PNG (a pixel counts above half the largest sample of its first
+/// channel) for a `width` x `height` photo; its size is read from the header first.
+pub fn decode_mask(bytes: &[u8], width: usize, height: usize) -> Result<Vec<bool>> {
+    let path = Path::new("mask.png");
+    if sniff(bytes) != Some("photo.png") {
+        return Err(Error::Invalid("mask: not a PNG".into()));
+    }
+    let (w, h) = crate::io::image_dimensions(path, bytes)?;
+    if (w, h) != (width, height) {
+        return Err(Error::Invalid(format!(
+            "mask: {w}x{h}; the photo is {width}x{height}"
+        )));
+    }
+    let d = crate::io::png::decode_bytes(path, bytes)?;
+    let half = d.max_value() / 2.0;
+    Ok(d.samples
+        .chunks_exact(d.channels)
+        .map(|p| f64::from(p[0]) > half)
+        .collect())
+}
+
+/// The photo as the page shows it (PNG).
+pub fn photo_png(photo: &Image) -> Result<Vec<u8>> {
+    crate::io::png::encode_preview(photo, &Preview::default())
 }
 
 /// Why an upload was refused: too large (413), not a kind of file taken (415), or not a
@@ -77,12 +134,15 @@ pub fn decode_upload(
     let image = crate::io::image_from_bytes(path, bytes).map_err(|e| Refusal::Bad(named(e)))?;
     photo::check_photo(&image).map_err(|e| Refusal::Bad(format!("{name}: {e}")))?;
     let mask = crate::io::png_alpha_mask(path, bytes).map_err(|e| Refusal::Bad(named(e)))?;
-    Ok(Upload { photo: image, mask })
+    Ok(Upload {
+        photo: Arc::new(image),
+        mask,
+    })
 }
 
 /// A decomposition with everything an edit and the page need.
 pub struct Analysed {
-    pub photo: Image,
+    pub photo: Arc<Image>,
     pub d: Decomposition,
     /// The decomposition and photo scaled to at most [`PREVIEW_SIDE`] a side.
     pub small: Decomposition,
@@ -128,16 +188,16 @@ pub fn describe(stage: Stage) -> (&'static str, usize, usize, String) {
     }
 }
 
-/// Decomposes an upload and makes its pictures.
+/// Decomposes a photo with its object at `target` and makes its pictures.
 pub fn analyse(
     renderer: &Renderer,
     nets: &Nets,
-    upload: Upload,
+    photo: Arc<Image>,
+    target: &Target,
     options: &PhotoOptions,
     progress: &mut dyn FnMut(Stage),
 ) -> Result<Analysed> {
-    let Upload { photo, mask } = upload;
-    let d = photo::decompose(renderer, nets, &photo, mask.as_deref(), options, progress)?;
+    let d = photo::decompose(renderer, nets, &photo, target.object(), options, progress)?;
     let factor = photo.width.max(photo.height).div_ceil(PREVIEW_SIDE).max(1);
     let (mut small, small_photo) = scaled(&d, &photo, factor);
     let coverage = small
@@ -147,14 +207,9 @@ pub fn analyse(
         .map(|n| f32::from(u8::from(n != &[0.0; 3])))
         .collect();
     small.set_render_normals(renderer, small.normals.clone(), coverage)?;
-    let preview = Preview::default();
     let crop_mask: Vec<bool> = d.normals.normals.iter().map(|n| n != &[0.0; 3]).collect();
     let files = vec![
-        (
-            "photo.png",
-            "image/png",
-            crate::io::png::encode_preview(&photo, &preview)?,
-        ),
+        ("photo.png", "image/png", photo_png(&photo)?),
         (
             "mask.png",
             "image/png",
@@ -228,7 +283,7 @@ pub fn edit_png(renderer: &Renderer, a: &Analysed, req: &EditRequest) -> Result<
     let (d, photo) = if req.preview {
         (&a.small, &a.small_photo)
     } else {
-        (&a.d, &a.photo)
+        (&a.d, a.photo.as_ref())
     };
     let mut env = if req.turn == 0.0 {
         d.env.clone()

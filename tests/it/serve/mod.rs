@@ -5,6 +5,7 @@
 
 mod clients;
 mod page;
+mod pointing;
 mod refusals;
 mod upload;
 
@@ -107,6 +108,12 @@ pub(super) fn upload_and_wait(addr: SocketAddr, bytes: &[u8]) -> (String, Vec<St
     assert_eq!(r.status, 202, "{}", r.text());
     let id = r.json()["id"].as_str().unwrap().to_string();
     assert_eq!(id.len(), 32);
+    let (names, text) = follow(addr, &id);
+    (id, names, text)
+}
+
+/// Follows a photo's events to the end; returns their names and the stream's text.
+pub(super) fn follow(addr: SocketAddr, id: &str) -> (Vec<String>, String) {
     let ev = request(addr, "GET", &format!("/api/photos/{id}/events"), &[], b"");
     assert_eq!(ev.status, 200);
     assert_eq!(ev.header("content-type"), Some("text/event-stream"));
@@ -119,5 +126,5 @@ pub(super) fn upload_and_wait(addr: SocketAddr, bytes: &[u8]) -> (String, Vec<St
         })
         .map(|s| s.trim().to_string())
         .collect();
-    (id, names, text)
+    (names, text)
 }
