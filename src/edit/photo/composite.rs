@@ -57,7 +57,14 @@ impl Decomposition {
         accuracy: Accuracy,
     ) -> Result<Image> {
         let env = light.unwrap_or(&self.env);
-        let new = render(renderer, &self.render_normals, env, material, accuracy, true)?;
+        let new = render(
+            renderer,
+            &self.render_normals,
+            env,
+            material,
+            accuracy,
+            true,
+        )?;
         Ok(self.transfer(photo, &new))
     }
 
@@ -72,7 +79,14 @@ impl Decomposition {
         accuracy: Accuracy,
     ) -> Result<Image> {
         let env = light.unwrap_or(&self.env);
-        let new = render(renderer, &self.render_normals, env, material, accuracy, true)?;
+        let new = render(
+            renderer,
+            &self.render_normals,
+            env,
+            material,
+            accuracy,
+            true,
+        )?;
         let mut out = Image::zeros(self.width, self.height);
         let s = self.render_normals.width;
         let f = s as f64 / self.crop.size as f64;
@@ -120,10 +134,10 @@ impl Decomposition {
         let u = ((i % self.width) as i64 - self.crop.x0) as f64 + 0.5;
         let v = ((i / self.width) as i64 - self.crop.y0) as f64 + 0.5;
         let size = self.crop.size as f64;
-        (u >= 0.0 && v >= 0.0 && u < size && v < size).then(|| (u * f - 0.5, v * f - 0.5))
+        (u >= 0.0 && v >= 0.0 && u < size && v < size).then_some((u * f - 0.5, v * f - 0.5))
     }
 
-    /// The photo with the object's pixels made R' (P / R)^detail and put over it with
+    /// The photo with the object's pixels made R' (Y' C^s)^detail and put over it with
     /// the soft mask (`new`: R', at the render's size).
     fn transfer(&self, photo: &Image, new: &Image) -> Image {
         let s = self.render_normals.width;
@@ -179,7 +193,11 @@ impl Decomposition {
                             1.0 => y_kept * colour,
                             s => y_kept * colour.powf(s),
                         };
-                        let gain = if detail == 1.0 { kept } else { kept.powf(detail) };
+                        let gain = if detail == 1.0 {
+                            kept
+                        } else {
+                            kept.powf(detail)
+                        };
                         let value = (r1[k] + eps) * gain - eps;
                         o[k] = (1.0 - a) * p[k] + a * value.max(0.0);
                     }
