@@ -56,15 +56,7 @@ impl Decomposition {
         light: Option<&EnvMap>,
         accuracy: Accuracy,
     ) -> Result<Image> {
-        let env = light.unwrap_or(&self.env);
-        let new = render(
-            renderer,
-            &self.render_normals,
-            env,
-            material,
-            accuracy,
-            true,
-        )?;
+        let new = self.render_new(renderer, material, light, accuracy)?;
         Ok(self.transfer(photo, &new))
     }
 
@@ -78,15 +70,7 @@ impl Decomposition {
         light: Option<&EnvMap>,
         accuracy: Accuracy,
     ) -> Result<Image> {
-        let env = light.unwrap_or(&self.env);
-        let new = render(
-            renderer,
-            &self.render_normals,
-            env,
-            material,
-            accuracy,
-            true,
-        )?;
+        let new = self.render_new(renderer, material, light, accuracy)?;
         let mut out = Image::zeros(self.width, self.height);
         let s = self.render_normals.width;
         let f = s as f64 / self.crop.size as f64;
@@ -96,6 +80,26 @@ impl Decomposition {
             }
         }
         Ok(out)
+    }
+
+    /// R': the object in `material` under `light` (`None`: the refined light) at the
+    /// render's size, as edits show it.
+    fn render_new(
+        &self,
+        renderer: &Renderer,
+        material: &Material,
+        light: Option<&EnvMap>,
+        accuracy: Accuracy,
+    ) -> Result<Image> {
+        let env = light.unwrap_or(&self.env);
+        render(
+            renderer,
+            &self.render_normals,
+            env,
+            material,
+            accuracy,
+            true,
+        )
     }
 
     /// Sets the normals edits render (over the crop, any size; zero off the object) and the
