@@ -85,7 +85,7 @@ def test_loss_falls_and_run_files(dataset):
     run = json.loads((out / "run.json").read_text())
     assert run["seed"] == 5 and run["step"] == 50 and len(run["data_spec_sha256"]) == 64
     nets = load(out / "weights.safetensors")
-    assert nets.cfg == NetsConfig(width=8, levels=2, env_height=8, env_width=16)
+    assert nets.cfg == NetsConfig(width=8, levels=2, env_height=8, env_width=16, image_size=16)
     assert float(nets.light_count) == 50 * 4  # the mean-light baseline saw every sample
 
     # evaluation on the held-out split: finite metrics beside the baselines', the CLI's JSON
@@ -119,6 +119,46 @@ def test_resume_reaches_the_uninterrupted_weights(dataset):
     other = train.load_config(write_config(dataset, "resume", steps=10, workers=2, render_loss=True, lr=1e-3))
     with pytest.raises(ValueError, match=r"config changed since the checkpoint \(lr\)"):
         train.train(other, dataset / "runs" / "split", resume=True, quiet=True)
+
+
+def test_resident_mode_trains_resumes_and_follows(dataset, tmp_path):
+    # the GPU mode (the data held on the device, losses read every log_every steps, bf16
+    # autocast) on the CPU: the loss falls, a stopped run resumes to the same weights
+    path = write_config(dataset, "resident", steps=40, resident=True, amp="bf16", log_every=5)
+    cfg = train.load_config(path)
+    whole = train.train(cfg, dataset / "runs" / "res_whole", quiet=True)
+    totals = [r["total"] for r in whole["history"]]
+    assert len(totals) == 40 and np.mean(totals[-10:]) < 0.8 * np.mean(totals[:5]), totals
+    train.train(cfg, dataset / "runs" / "res_split", stop_at=15, quiet=True)
+    resumed = train.train(cfg, dataset / "runs" / "res_split", resume=True, quiet=True)
+    assert resumed["history"] == whole["history"]
+    a = load(dataset / "runs" / "res_whole" / "weights.safetensors").state_dict()
+    b = load(dataset / "runs" / "res_split" / "weights.safetensors").state_dict()
+    assert all(torch.equal(a[k], b[k]) for k in a)
+
+    # a folder that a synth is still writing: chunks recorded later are picked up
+    grow = tmp_path / "grow"
+    grow.mkdir()
+    recs = sorted((dataset / "train").glob("chunk-*.json"))
+    def add(rec):
+        r = json.loads(rec.read_text())
+        (grow / r["file"]).write_bytes((dataset / "train" / r["file"]).read_bytes())
+        (grow / rec.name).write_text(rec.read_text())
+    add(recs[0])
+    held = data.Resident(grow)
+    assert len(held) == 8 and held.refresh() == 0
+    for rec in recs[1:]:
+        add(rec)
+    assert held.refresh() == 24 and len(held) == 32
+    assert held.tensors["image"].shape == (32, 16, 16, 3) and held.tensors["mask"].dtype == torch.bool
+    batch = held.batch(6, torch.Generator().manual_seed(0))
+    assert batch["ctrl"].shape == (6, 108)
+    with pytest.raises(ValueError, match="no chunk-"):
+        data.Resident(tmp_path)
+    with pytest.raises(ValueError, match="follow = 5 needs resident = True"):
+        train.load_config(write_config(dataset, "bad_follow", follow=5))
+    with pytest.raises(ValueError, match="amp = 'fp8'"):
+        train.load_config(write_config(dataset, "bad_amp", amp="fp8"))
 
 
 def test_init_starts_from_weights(dataset):

@@ -100,6 +100,11 @@ impl Nets {
         Self::build(cfg, w)
     }
 
+    /// The image side the nets were trained at; [`crate::edit::photo`] analyses photos at it.
+    pub fn image_size(&self) -> usize {
+        self.cfg.image_size
+    }
+
     fn build(cfg: NetsConfig, mut w: Weights) -> Result<Nets> {
         let normals = NormalsNet::new(&mut w, &cfg)?;
         let material = GlobalNet::new(&mut w, "material.net", &cfg, cfg.basis)?;

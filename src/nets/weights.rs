@@ -29,6 +29,8 @@ pub struct NetsConfig {
     /// `basis`; none named: all 90).
     #[serde(rename = "basis", deserialize_with = "basis_size")]
     pub basis: usize,
+    /// The image side the nets were trained at: photos are analysed at it.
+    pub image_size: usize,
 }
 
 /// The number of presets a metadata `basis` names, 90 (all) for none.
@@ -49,6 +51,7 @@ impl Default for NetsConfig {
             env_height: 16,
             env_width: 32,
             basis: super::N_MERL,
+            image_size: 64,
         }
     }
 }
@@ -90,6 +93,16 @@ impl Weights {
             serde_json::from_str(config).map_err(|e| bad(format!("metadata config: {e}")))?;
         if cfg.width == 0 || cfg.levels == 0 || cfg.env_height == 0 || cfg.env_width == 0 {
             return Err(bad(format!("metadata config: {config} has a zero size")));
+        }
+        if cfg.levels <= 16
+            && (cfg.image_size == 0
+                || cfg.image_size > 1024
+                || cfg.image_size % (1 << (cfg.levels - 1)) != 0)
+        {
+            return Err(bad(format!(
+                "metadata config: image_size {} is not a multiple of 2^(levels - 1) in 1..=1024",
+                cfg.image_size
+            )));
         }
         let too_large = cfg.levels > 16
             || cfg.width.checked_mul(1 << (cfg.levels + 2)).is_none()

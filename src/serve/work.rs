@@ -50,8 +50,7 @@ impl Target {
 /// The object's mask from `pointing` ([`photo::segment_object`]) as a PNG of the photo's
 /// size, with its count of pixels.
 pub fn segment_png(nets: &Nets, photo: &Image, pointing: &Pointing) -> Result<(Vec<u8>, usize)> {
-    let n = PhotoOptions::default().net_size;
-    let mask = photo::segment_object(nets, photo, pointing, n)?;
+    let mask = photo::segment_object(nets, photo, pointing, nets.image_size())?;
     let count = mask.iter().filter(|&&m| m).count();
     Ok((
         crate::io::png::encode_mask(photo.width, photo.height, &mask)?,

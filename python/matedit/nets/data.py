@@ -13,6 +13,10 @@ workers; `start_step` resumes it at batch `start_step` exactly (the skipped samp
 decoded), which is all a checkpoint records of the data position.
 
 `read_chunk(path)` yields one tar's samples; `samples(folder)` every sample once, in order.
+
+`Resident(folder, device)` holds every sample of a folder in one device's memory instead,
+for a GPU that must not wait: `batch(generator)` draws a batch by index on the device, and
+`refresh()` adds the chunks that a `matedit synth` still writing there has finished since.
 """
 
 from __future__ import annotations
@@ -28,8 +32,9 @@ import torch
 MEMBERS = ("env.npy", "image.npy", "material.json", "normals.npy")
 
 
-def chunks(folder) -> list[dict]:
-    """The chunk records of a synth folder ({"file", "first", "count"}), in chunk order."""
+def chunks(folder, allow_none: bool = False) -> list[dict]:
+    """The chunk records of a synth folder ({"file", "first", "count"}), in chunk order;
+    none is an error unless `allow_none`."""
     d = pathlib.Path(folder)
     if not d.is_dir():
         raise ValueError(f"{d}: not a folder (a dataset is a folder that `matedit synth` wrote)")
@@ -40,7 +45,7 @@ def chunks(folder) -> list[dict]:
             recs.append({"file": str(d / r["file"]), "first": int(r["first"]), "count": int(r["count"])})
         except (ValueError, KeyError, TypeError) as e:
             raise ValueError(f"{p}: not a synth chunk record ({e})") from None
-    if not recs:
+    if not recs and not allow_none:
         raise ValueError(f"{d}: no chunk-*.json records; write a dataset there with `matedit synth SPEC -o {d}`")
     return recs
 
@@ -183,3 +188,39 @@ class ChunkStream(torch.utils.data.IterableDataset):
         stream = self.role_samples(self.rank * workers + role, shards, done * self.batch_size)
         while True:
             yield collate([next(stream) for _ in range(self.batch_size)])
+
+
+class Resident:
+    """Every sample of a synth folder in memory on `device` (images, normals, masks, lights
+    and materials as stacked tensors), growing by `refresh()` as chunks appear; a chunk's
+    record is written after its tar, so a recorded chunk is complete."""
+
+    def __init__(self, folder, device="cpu"):
+        self.folder, self.device = str(folder), torch.device(device)
+        self.loaded: set[str] = set()
+        self.tensors: dict[str, torch.Tensor] = {}
+        self.refresh()
+        if not self.tensors:
+            chunks(folder)  # raises: no chunk records
+
+    def __len__(self) -> int:
+        return len(self.tensors["index"]) if self.tensors else 0
+
+    def refresh(self) -> int:
+        """Loads the chunks recorded since the last call; returns how many samples came."""
+        new = [r for r in chunks(self.folder, allow_none=True) if r["file"] not in self.loaded]
+        if not new:
+            return 0
+        parts = [collate([s for _, s in read_chunk(r["file"])]) for r in new]
+        parts = [{k: v.to(self.device) for k, v in p.items()} for p in parts]
+        if self.tensors:
+            parts.insert(0, self.tensors)
+        self.tensors = {k: torch.cat([p[k] for p in parts]) for k in parts[0]}
+        self.loaded.update(r["file"] for r in new)
+        return sum(r["count"] for r in new)
+
+    def batch(self, size: int, generator: torch.Generator) -> dict:
+        """`size` samples drawn uniformly with replacement by `generator` (on the CPU, so
+        that the draws do not depend on the device)."""
+        idx = torch.randint(len(self), (size,), generator=generator).to(self.device)
+        return {k: v[idx] for k, v in self.tensors.items()}

@@ -59,6 +59,8 @@ class NetsConfig:
     # the fitted MERL presets the material net mixes, by name; empty: all 90. A run that
     # holds materials out for testing leaves them out of the basis too.
     basis: list = field(default_factory=list)
+    # the image side the nets were trained at (set by training): `matedit edit` runs them at it
+    image_size: int = 64
 
 
 def basis_names(cfg: "NetsConfig") -> list[str]:

@@ -40,6 +40,7 @@ import random
 import runpy
 import sys
 import time
+from dataclasses import replace
 
 import numpy as np
 import torch
@@ -47,7 +48,7 @@ import torch.distributed as dist
 import torch.nn.functional as F
 
 import matedit.torch
-from matedit.nets.data import ChunkStream, spec_digest
+from matedit.nets.data import ChunkStream, Resident, spec_digest
 from matedit.nets.model import Nets, NetsConfig, check_sizes, load, normalise, prepare, probe_scene, save, slog, spheres
 
 DEFAULTS = {
@@ -76,6 +77,10 @@ DEFAULTS = {
     "shuffle_buffer": 64,
     "device": "cpu",  # the nets' torch device ("cuda" for a GPU)
     "render_device": "cpu",  # the rendering layer's device ("cpu" is bit-reproducible)
+    "resident": False,  # hold the whole dataset on `device` (data.Resident) instead of streaming it
+    "follow": 0,  # resident: every `follow` steps, load the chunks a running synth has finished
+    "amp": "",  # "bf16": the nets' forward in bfloat16 autocast (the losses stay float32)
+    "layer": "rust",  # the material loss's sphere renders: "rust" (matedit.torch) or "torch" (nets.layer)
     "log_every": 10,
     "checkpoint_every": 200,
     "checkpoint_seconds": 600.0,
@@ -107,6 +112,11 @@ def load_config(path) -> dict:
     for k in ("width", "levels", "env_height", "env_width", "steps", "batch_size", "threads"):
         if cfg[k] < 1:
             raise ValueError(f"{path}: {k} = {cfg[k]}: expected at least 1")
+    for k, allowed in (("amp", ("", "bf16")), ("layer", ("rust", "torch"))):
+        if cfg[k] not in allowed:
+            raise ValueError(f"{path}: {k} = {cfg[k]!r}: expected one of {', '.join(map(repr, allowed))}")
+    if cfg["follow"] and not cfg["resident"]:
+        raise ValueError(f"{path}: follow = {cfg['follow']} needs resident = True")
     if not (cfg["lr"] > 0 and math.isfinite(cfg["lr"])):
         raise ValueError(f"{path}: lr = {cfg['lr']}: expected a positive number")
     cfg["data"] = str((path.parent / cfg["data"]).resolve())
@@ -139,19 +149,32 @@ def angle(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
     return torch.acos((a * b).sum(-1).clamp(-1 + 1e-6, 1 - 1e-6))
 
 
-def losses(nets, batch: dict, cfg: dict, probe) -> dict:
+def sphere_renderer(cfg: dict, device: torch.device):
+    """ctrl (B, 108) -> the probe spheres (B, P, 32, 32, 3) by the configured layer."""
+    probe = probe_scene(32, cfg["env_height"], cfg["env_width"])
+    if cfg["layer"] == "torch":
+        from matedit.nets.layer import ProbeSpheres
+
+        return ProbeSpheres(*probe).to(device)
+    probe = tuple(t.to(device) for t in probe)
+    return lambda ctrl: spheres(ctrl, probe, cfg["render_device"])
+
+
+def losses(nets, batch: dict, cfg: dict, render_spheres) -> dict:
     """The loss parts of one batch (see the module's docstring)."""
     image, mask, dev = batch["image"], batch["mask"], cfg["render_device"]
     target, s = normalise(image, mask)
     env_t = batch["env"] / s[:, None, None, None]
-    out = nets(prepare(image, mask), mask)
+    with torch.autocast(image.device.type, dtype=torch.bfloat16, enabled=cfg["amp"] == "bf16"):
+        out = nets(prepare(image, mask), mask)
+    out = {k: v.float() for k, v in out.items()}
     n = out["normals"]
+    with torch.no_grad():
+        sph_true = render_spheres(batch["ctrl"])
     parts = {
         "normals": masked_mean(angle(n, batch["normals"]), mask),
         "mask": F.binary_cross_entropy_with_logits(out["mask_logits"], mask.float()),
-        "material": (slog(spheres(out["ctrl"], probe, dev)) - slog(spheres(batch["ctrl"], probe, dev)))
-        .abs()
-        .mean(),
+        "material": (slog(render_spheres(out["ctrl"])) - slog(sph_true)).abs().mean(),
         "light": (torch.log(out["env"] + 1e-3) - torch.log(env_t + 1e-3)).abs().mean(),
     }
     if cfg["render_loss"]:
@@ -215,8 +238,11 @@ def write_atomic(obj, path: pathlib.Path) -> None:
     os.replace(tmp, path)
 
 
-def train(cfg: dict, out, resume: bool = False, stop_at: int | None = None, quiet: bool = False) -> dict:
-    """Trains (or resumes) a run into folder `out`; returns {"step", "history", "seconds"}."""
+def train(cfg: dict, out, resume: bool = False, stop_at: int | None = None, quiet: bool = False,
+          stop_after: float | None = None) -> dict:
+    """Trains (or resumes) a run into folder `out`; returns {"step", "history", "seconds"}.
+    `stop_at` ends it after that step, `stop_after` after that many seconds of training
+    (both with a checkpoint)."""
     out = pathlib.Path(out)
     world, rank = int(os.environ.get("WORLD_SIZE", 1)), int(os.environ.get("RANK", 0))
     if world > 1 and not dist.is_initialized():
@@ -238,7 +264,7 @@ def train(cfg: dict, out, resume: bool = False, stop_at: int | None = None, quie
     nets = Nets(NetsConfig(**{k: cfg[k] for k in ("width", "levels", "env_height", "env_width", "basis")}))
     if cfg["init"] and not resume:
         start = load(cfg["init"])
-        if start.cfg != nets.cfg:
+        if replace(start.cfg, image_size=nets.cfg.image_size) != nets.cfg:
             raise ValueError(f"{cfg['init']}: its nets are {start.cfg}, the config asks for {nets.cfg}")
         nets.load_state_dict(start.state_dict())
     opt = torch.optim.AdamW(nets.parameters(), lr=cfg["lr"], weight_decay=cfg["weight_decay"])
@@ -248,8 +274,8 @@ def train(cfg: dict, out, resume: bool = False, stop_at: int | None = None, quie
         if not ckpt_path.is_file():
             raise ValueError(f"{ckpt_path}: no checkpoint to resume from")
         ck = torch.load(ckpt_path, weights_only=False, map_location="cpu")
-        if ck["config"] != cfg:
-            changed = sorted(k for k in cfg if ck["config"].get(k) != cfg[k])
+        if {**DEFAULTS, **ck["config"]} != cfg:  # settings added since take their defaults
+            changed = sorted(k for k in cfg if {**DEFAULTS, **ck["config"]}.get(k) != cfg[k])
             raise ValueError(f"{ckpt_path}: the config changed since the checkpoint ({', '.join(changed)})")
         nets.load_state_dict(ck["model"])
         step, history, seconds = ck["step"], ck["history"], ck["seconds"]
@@ -269,9 +295,27 @@ def train(cfg: dict, out, resume: bool = False, stop_at: int | None = None, quie
     if rank == 0:
         out.mkdir(parents=True, exist_ok=True)
 
-    stream = ChunkStream(cfg["data"], cfg["batch_size"], cfg["seed"], rank, world, cfg["shuffle_buffer"], step)
-    loader = torch.utils.data.DataLoader(stream, batch_size=None, num_workers=cfg["workers"], pin_memory=dev.type == "cuda")
-    probe = tuple(t.to(dev) for t in probe_scene(32, cfg["env_height"], cfg["env_width"]))
+    if cfg["resident"]:
+        if world > 1:
+            raise ValueError("resident = True runs in one process (no DDP)")
+        data = Resident(cfg["data"], dev)
+        draws = torch.Generator().manual_seed(cfg["seed"])
+        if resume and "draws" in ck:
+            draws.set_state(ck["draws"])
+
+        def next_batch():
+            if cfg["follow"] and step % cfg["follow"] == 0:
+                data.refresh()
+            return data.batch(cfg["batch_size"], draws)
+    else:
+        stream = ChunkStream(cfg["data"], cfg["batch_size"], cfg["seed"], rank, world, cfg["shuffle_buffer"], step)
+        loader = torch.utils.data.DataLoader(stream, batch_size=None, num_workers=cfg["workers"], pin_memory=dev.type == "cuda")
+        batches = iter(loader)
+
+        def next_batch():
+            return {k: v.to(dev, non_blocking=True) for k, v in next(batches).items()}
+
+    render_spheres = sphere_renderer(cfg, dev)
     weights = {p: cfg[f"w_{p}"] for p in PARTS}
     end = cfg["steps"] if stop_at is None else min(stop_at, cfg["steps"])
 
@@ -280,6 +324,8 @@ def train(cfg: dict, out, resume: bool = False, stop_at: int | None = None, quie
             return
         rng = {"torch": torch.get_rng_state(), "numpy": np.random.get_state(), "python": random.getstate()}
         state = {"model": nets.state_dict(), "optimizer": opt.state_dict(), "step": step, "history": history}
+        if cfg["resident"]:
+            state.update(draws=draws.get_state(), samples=len(data))
         write_atomic({**state, "rng": rng, "seconds": seconds, "config": cfg}, ckpt_path)
         save(nets, out / ".weights.safetensors", {"step": step, "data_spec": spec_digest(cfg["data"])})
         os.replace(out / ".weights.safetensors", out / "weights.safetensors")
@@ -309,43 +355,65 @@ def train(cfg: dict, out, resume: bool = False, stop_at: int | None = None, quie
 
     agree = True
     last_ckpt = time.time()
-    t_log, tick = time.time(), time.time()
-    batches = iter(loader)
-    while step < end:
-        batch = {k: v.to(dev, non_blocking=True) for k, v in next(batches).items()}
+    t_log, tick, seconds0 = time.time(), time.time(), seconds
+    # the steps' losses stay on the device until read, every step when streaming, every
+    # log_every steps when resident (reading one waits for the GPU)
+    pending, read_every = [], cfg["log_every"] if cfg["resident"] else 1
+
+    def read_losses() -> None:
+        vals = torch.stack([torch.stack(list(p.values())) for _, p in pending]).tolist()
+        for (at, p), row in zip(pending, vals):
+            rec = dict(zip(p, row))
+            if not math.isfinite(rec["total"]):
+                detail = ", ".join(f"{k} {v:.3g}" for k, v in rec.items() if k != "total")
+                raise ValueError(f"step {at}: the loss is {rec['total']} ({detail})")
+            history.append({"step": at + 1, **rec})
+        pending.clear()
+
+    while step < end and not (stop_after and seconds - seconds0 >= stop_after):
+        batch = next_batch()
         check_sizes(nets.cfg, batch["image"], batch["env"], cfg["data"])
+        nets.cfg.image_size = batch["image"].shape[1]
         for g in opt.param_groups:
             g["lr"] = lr_at(cfg, step)
-        parts = losses(model, batch, cfg, probe)
+        parts = losses(model, batch, cfg, render_spheres)
         total = sum(weights[k] * v for k, v in parts.items())
-        if not torch.isfinite(total):
-            detail = ", ".join(f"{k} {v.item():.3g}" for k, v in parts.items())
-            raise ValueError(f"step {step}: the loss is {total.item()} ({detail})")
+        pending.append((step, {"total": total.detach(), **{k: v.detach() for k, v in parts.items()}}))
+        if len(pending) >= read_every:
+            read_losses()
         opt.zero_grad(set_to_none=True)
         total.backward()
         opt.step()
         with torch.no_grad():  # the mean-light baseline: every rank adds every rank's lights
             _, s = normalise(batch["image"], batch["mask"])
             stats = torch.cat([torch.log(batch["env"] / s[:, None, None, None] + 1e-3).double().sum(0).flatten(),
-                               torch.tensor([float(len(s))], dtype=torch.float64, device=dev)])
+                               torch.full((1,), float(len(s)), dtype=torch.float64, device=dev)])
             if world > 1:
                 dist.all_reduce(stats)
             nets.log_light_sum += stats[:-1].view_as(nets.log_light_sum)
             nets.light_count += stats[-1]
         step += 1
+        if step % cfg["log_every"] == 0 or step == end:
+            if pending:
+                read_losses()
+            now = time.time()
+            if rank == 0 and not quiet:
+                ms = 1000 * (now - t_log) / (step % cfg["log_every"] or cfg["log_every"])
+                detail = " ".join(f"{k} {v:.4f}" for k, v in history[-1].items() if k not in ("step", "total"))
+                lr = lr_at(cfg, step - 1)
+                more = f" {len(data)} samples" if cfg["resident"] else ""
+                print(f"step {step}/{cfg['steps']} loss {history[-1]['total']:.4f} ({detail}) lr {lr:.2e} {ms:.0f} ms/step{more}", flush=True)
+                t_log = now
         now = time.time()
         seconds += now - tick
         tick = now
-        history.append({"step": step, "total": total.item(), **{k: v.item() for k, v in parts.items()}})
-        if rank == 0 and not quiet and (step % cfg["log_every"] == 0 or step == end):
-            ms = 1000 * (now - t_log) / (step % cfg["log_every"] or cfg["log_every"])
-            detail = " ".join(f"{k} {v.item():.4f}" for k, v in parts.items())
-            lr = lr_at(cfg, step - 1)
-            print(f"step {step}/{cfg['steps']} loss {total.item():.4f} ({detail}) lr {lr:.2e} {ms:.0f} ms/step", flush=True)
-            t_log = now
         if step % cfg["checkpoint_every"] == 0 or now - last_ckpt > cfg["checkpoint_seconds"]:
+            if pending:
+                read_losses()
             checkpoint()
             last_ckpt = time.time()
+    if pending:
+        read_losses()
     agree = ranks_agree()
     checkpoint()
     if world > 1:
@@ -359,11 +427,12 @@ def main(argv=None) -> int:
     ap.add_argument("--out", help="run folder (default runs/CONFIG-NAME)")
     ap.add_argument("--resume", action="store_true", help="continue from OUT/ckpt.pt")
     ap.add_argument("--stop-at", type=int, help="stop after this many steps, with a checkpoint")
+    ap.add_argument("--stop-after", type=float, help="stop after this many seconds of training, with a checkpoint")
     args = ap.parse_args(argv)
     try:
         cfg = load_config(args.config)
         out = args.out or os.path.join("runs", pathlib.Path(args.config).stem)
-        res = train(cfg, out, resume=args.resume, stop_at=args.stop_at)
+        res = train(cfg, out, resume=args.resume, stop_at=args.stop_at, stop_after=args.stop_after)
     except ValueError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2

@@ -39,7 +39,10 @@ pub fn decompose<'a>(
 ) -> Result<Decomposition> {
     check_photo(photo)?;
     let (w, h) = (photo.width, photo.height);
-    let n = options.net_size;
+    let n = match options.net_size {
+        0 => nets.image_size(),
+        n => n,
+    };
     let mut t = Instant::now();
     let found;
     let mut stages = Vec::new();

@@ -59,7 +59,8 @@ pub struct PhotoOptions {
     pub normal_anchor: f64,
     /// The refinement runs on the crop box-filtered to at most this many pixels a side.
     pub work_size: usize,
-    /// The nets' input size (square; a multiple of 2^(levels - 1)).
+    /// The nets' input size (square; a multiple of 2^(levels - 1)); 0 (the default): the
+    /// size they were trained at ([`Nets::image_size`](crate::nets::Nets::image_size)).
     pub net_size: usize,
     /// How much of the photo's own detail an edit keeps, in [0, 1]: 1 (the default) the
     /// photo with the shading changed from the old material to the new (the photo itself
@@ -79,7 +80,7 @@ impl Default for PhotoOptions {
             normal_smoothness: 0.05,
             normal_anchor: 0.0,
             work_size: 128,
-            net_size: 64,
+            net_size: 0,
             detail: 1.0,
             background_light: true,
         }
