@@ -151,12 +151,11 @@ def angle(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
 
 def sphere_renderer(cfg: dict, device: torch.device):
     """ctrl (B, 108) -> the probe spheres (B, P, 32, 32, 3) by the configured layer."""
-    probe = probe_scene(32, cfg["env_height"], cfg["env_width"])
+    probe = tuple(t.to(device) for t in probe_scene(32, cfg["env_height"], cfg["env_width"]))
     if cfg["layer"] == "torch":
-        from matedit.nets.layer import ProbeSpheres
+        from matedit.nets.layer import Scene
 
-        return ProbeSpheres(*probe).to(device)
-    probe = tuple(t.to(device) for t in probe)
+        return Scene(*probe).render_all
     return lambda ctrl: spheres(ctrl, probe, cfg["render_device"])
 
 
