@@ -79,7 +79,8 @@ def main() -> None:
     else:
         probe = model.probe_scene(32)
         merl = model.merl_presets(matedit.presets()[: model.N_MERL])
-        ctrl = torch.softmax(torch.randn(a.batch, model.N_MERL, generator=torch.Generator().manual_seed(0)) * 3, -1) @ merl
+        g = torch.Generator().manual_seed(0)
+        ctrl = torch.softmax(torch.randn(a.batch, model.N_MERL, generator=g) * 3, -1) @ merl
     c_cpu, c_dev = ctrl.clone().requires_grad_(), ctrl.to(dev).requires_grad_()
     t0 = time.perf_counter()
     scene = layer.Scene(*(t.to(dev) for t in probe))

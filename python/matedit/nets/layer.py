@@ -237,7 +237,8 @@ class Scene:
         w = self._weights(c.dtype, "all")
         lnx = self.lnx.to(c.dtype)
         step = max(1, CHUNK // (lnx.shape[1] * lnx.shape[2]))
-        out = [_Lobes.apply(lnx, w, m0[:, :, :, i : i + step], m1[:, :, :, i : i + step]) for i in range(0, len(c), step)]
+        parts = [slice(i, i + step) for i in range(0, len(c), step)]
+        out = [_Lobes.apply(lnx, w, m0[:, :, :, b], m1[:, :, :, b]) for b in parts]
         v = torch.cat(out, 2)[0]  # (pix, B, G', 3)
         return self._image(v.permute(1, 2, 0, 3).flatten(0, 1)).view(len(c), -1, *self.size, 3)
 
