@@ -23,8 +23,7 @@ try:
     import matedit
     import matedit.nets
 
-    if not (pathlib.Path(matedit.nets.__file__).parent / "layer.py").exists():
-        matedit.nets.__path__.insert(0, str(REPO_NETS))  # an installed package older than layer.py
+    matedit.nets.__path__.insert(0, str(REPO_NETS))  # the repository's layer.py, not an installed copy
     from matedit.nets import layer, model
 except ImportError:  # no extension: layer.py alone
     matedit = model = None

@@ -6,7 +6,6 @@ face away (x = 0 pairs), the paper convention, model.spheres' torch backend, and
 where there is one."""
 
 import importlib.util
-import inspect
 import pathlib
 import sys
 
@@ -19,8 +18,8 @@ import matedit.nets
 import matedit.torch
 
 REPO_NETS = pathlib.Path(__file__).resolve().parents[1] / "matedit" / "nets"
-if not (pathlib.Path(matedit.nets.__file__).parent / "layer.py").exists():
-    matedit.nets.__path__.insert(0, str(REPO_NETS))  # an installed package older than layer.py
+if REPO_NETS.is_dir():
+    matedit.nets.__path__.insert(0, str(REPO_NETS))  # the repository's layer.py, not an installed copy
 
 from matedit.nets import layer, model  # noqa: E402
 
@@ -29,8 +28,8 @@ MERL = model.merl_presets(matedit.presets()[: model.N_MERL])
 
 
 def _model():
-    """model, or the repository's model.py where the installed one predates `backend`."""
-    if "backend" in inspect.signature(model.spheres).parameters:
+    """The repository's model.py (model where there is none)."""
+    if not (REPO_NETS / "model.py").exists():
         return model
     name = "matedit.nets._repo_model"
     if name not in sys.modules:
@@ -173,7 +172,7 @@ def test_small_chunks_give_the_same_images(monkeypatch):
     ctrl = mixes(3, 9)
     whole = layer.Scene(*PROBE).render_all(ctrl)
     monkeypatch.setattr(layer, "CHUNK", 1)
-    assert torch.equal(layer.Scene(*PROBE).render_all(ctrl), whole)
+    assert rel(layer.Scene(*PROBE).render_all(ctrl), whole) < 1e-6  # matmul rounds by its shapes
 
 
 @pytest.mark.skipif(not torch.cuda.is_available(), reason="no CUDA device")

@@ -197,8 +197,10 @@ class Scene:
         every light."""
         cos, ld = self.cos.to(dtype), self.ld.to(dtype)
         if mode == "zip":
-            return (cos[:, None] * ld.transpose(1, 2)[:, :, None])[..., None]
-        return (cos[:, None, :, :, None] * ld.permute(2, 1, 0)[None, :, None])
+            w = (cos[:, None] * ld.transpose(1, 2)[:, :, None])[..., None]
+        else:
+            w = cos[:, None, :, :, None] * ld.permute(2, 1, 0)[None, :, None]
+        return w.contiguous()  # a broadcast product keeps its inputs' strides; matmul wants these
 
     def _image(self, values: torch.Tensor) -> torch.Tensor:
         """(N, pix, 3) pixel values -> (N, H, W, 3) images, 0 on the background."""
