@@ -352,9 +352,18 @@ def probe_scene(size: int = 32, env_height: int = 16, env_width: int = 32) -> tu
     return torch.from_numpy(matedit.sphere(size)), torch.from_numpy(envs)
 
 
-def spheres(ctrl: torch.Tensor, probe: tuple[torch.Tensor, torch.Tensor], device: str = "cpu") -> torch.Tensor:
+def spheres(ctrl: torch.Tensor, probe, device: str = "cpu", backend: str = "rust") -> torch.Tensor:
     """The materials ctrl (B, 108) on the probe's sphere under each probe light:
-    (B, P, size, size, 3), differentiable in ctrl."""
+    (B, P, size, size, 3), differentiable in ctrl. backend "rust": matedit.torch.render on
+    the layer's `device`; "torch": matedit.nets.layer in torch ops on ctrl's device (`probe`
+    may then be a prepared layer.Scene of the probe's tensors, built once)."""
+    if backend == "torch":
+        from matedit.nets import layer
+
+        scene = probe if isinstance(probe, layer.Scene) else layer.Scene(*probe)
+        return scene.render_all(ctrl)
+    if backend != "rust":
+        raise ValueError(f"spheres: backend {backend!r}, expected 'rust' or 'torch'")
     import matedit.torch
 
     normals, envs = probe
