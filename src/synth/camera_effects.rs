@@ -145,7 +145,7 @@ fn range(
     what: &str,
 ) -> std::result::Result<Option<[f64; 2]>, String> {
     let Some([lo, hi]) = r else { return Ok(None) };
-    if !(lo <= hi) {
+    if lo > hi || lo.is_nan() || hi.is_nan() {
         return Err(format!(
             "camera_effects.{key}: [{lo}, {hi}]: expected LO <= HI"
         ));
@@ -257,7 +257,7 @@ impl Drawn {
             .sum::<f64>()
             / n.max(1) as f64;
         let read = level * mean.max(0.0);
-        if !(read > 0.0) || !read.is_finite() {
+        if read <= 0.0 || !read.is_finite() {
             return 0.0;
         }
         let shot = level * read; // variance per unit of signal: s m
