@@ -337,6 +337,26 @@ def test_a_mask_member_is_used(dataset, tmp_path):
     assert torch.equal(plain[0]["mask"], plain[0]["normals"].abs().sum(-1) > 0)
 
 
+def test_an_edit_member_is_decoded(dataset, tmp_path):
+    """A sample's edit.npy (a spec with "edit"), where present, is decoded as "edit"."""
+    src = dataset / "train" / "chunk-000000.tar"
+    with tarfile.open(src) as t, tarfile.open(tmp_path / "chunk.tar", "w") as out:
+        for info in t.getmembers():
+            data_ = t.extractfile(info).read()
+            if info.name.endswith(".env.npy"):  # edit.npy sorts before env.npy, as synth writes it
+                buf = io.BytesIO()
+                np.save(buf, np.full((16, 16, 3), 0.25, np.float32))
+                extra = tarfile.TarInfo(info.name.replace("env.npy", "edit.npy"))
+                extra.size = len(buf.getvalue())
+                out.addfile(extra, io.BytesIO(buf.getvalue()))
+            out.addfile(info, io.BytesIO(data_))
+    got = [s for _, s in data.read_chunk(tmp_path / "chunk.tar")]
+    plain = [s for _, s in data.read_chunk(src)]
+    assert len(got) == 8 and all(torch.equal(s["edit"], torch.full((16, 16, 3), 0.25)) for s in got)
+    assert all(torch.equal(a["image"], b["image"]) and "edit" not in b for a, b in zip(got, plain))
+    assert data.collate(got)["edit"].shape == (8, 16, 16, 3)
+
+
 def test_a_missing_sample_is_named(dataset, tmp_path):
     (tmp_path / "chunk-000000.json").write_bytes((dataset / "train" / "chunk-000000.json").read_bytes())
     with tarfile.open(dataset / "train" / "chunk-000000.tar") as t, tarfile.open(tmp_path / "chunk-000000.tar", "w") as out:

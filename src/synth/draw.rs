@@ -4,7 +4,7 @@
 use serde_json::{Value, json};
 
 use super::augment::Views;
-use super::sources::{SampleMaterial, SampleNormals, Weighted};
+use super::sources::{MaterialItem, SampleMaterial, SampleNormals, Weighted};
 use super::spec::Spec;
 use crate::camera::Camera;
 use crate::error::{Error, Result};
@@ -26,6 +26,10 @@ pub struct Sample {
     pub background: Option<Vec<[f32; 3]>>,
     /// The draws: sources, rotation, mixing weights, seed and index (JSON).
     pub params: Value,
+    /// The camera effects' draws, if the spec asks for them.
+    pub camera_effects: Option<super::camera_effects::Drawn>,
+    /// The edit's material, if the spec asks for one.
+    pub edit: Option<super::edit::EditDraw>,
 }
 
 impl SplitMix {
@@ -104,20 +108,7 @@ impl Spec {
         let (env, changes) = src.augment.apply(env, &mut rng)?;
         merge(&mut eparams, changes);
 
-        let mi = pick(&mut rng, &self.materials);
-        let item = &self.materials[mi].source;
-        let (material, mut mparams) = match &item.source {
-            SampleMaterial::Fixed(m, p) => (Material::clone(m), p.clone()),
-            SampleMaterial::RandomMerl { mix, from } => random_merl(&mut rng, *mix, from)?,
-        };
-        let material = match &item.perturb {
-            None => material,
-            Some(p) => {
-                let (m, record) = super::perturb::apply(&material, &p.draw(&mut rng))?;
-                merge(&mut mparams, json!({ "perturb": record }));
-                m
-            }
-        };
+        let (mi, material, mparams) = draw_material(&mut rng, &self.materials)?;
 
         let mask: Vec<bool> = normals.normals.iter().map(|n| *n != [0.0f32; 3]).collect();
         let bi = pick(&mut rng, &self.backgrounds);
@@ -126,7 +117,7 @@ impl Spec {
                 .source
                 .draw(&env, self.camera, self.image_size, &mut rng);
 
-        let params = json!({
+        let mut params = json!({
             "index": k,
             "seed": self.seed,
             "normals": nparams,
@@ -145,10 +136,14 @@ impl Spec {
                 Camera::Orthographic => Value::Null,
             },
         });
+        // from generators of their own: a spec without these keys draws what it did
+        let (camera_effects, edit) = self.draw_extras(k, &mut params)?;
         Ok(Sample {
             index: k,
             mask,
             background,
+            camera_effects,
+            edit,
             scene: Scene {
                 normals,
                 env,
@@ -193,6 +188,29 @@ impl Sample {
         }
         render
     }
+}
+
+/// A material drawn from `items`: the item's index, the material (perturbed if the item
+/// says so) and what the sample records of it.
+pub(super) fn draw_material(
+    rng: &mut SplitMix,
+    items: &[Weighted<MaterialItem>],
+) -> Result<(usize, Material, Value)> {
+    let mi = pick(rng, items);
+    let item = &items[mi].source;
+    let (material, mut mparams) = match &item.source {
+        SampleMaterial::Fixed(m, p) => (Material::clone(m), p.clone()),
+        SampleMaterial::RandomMerl { mix, from } => random_merl(rng, *mix, from)?,
+    };
+    let material = match &item.perturb {
+        None => material,
+        Some(p) => {
+            let (m, record) = super::perturb::apply(&material, &p.draw(rng))?;
+            merge(&mut mparams, json!({ "perturb": record }));
+            m
+        }
+    };
+    Ok((mi, material, mparams))
 }
 
 /// Adds `extra`'s keys to the object `into`.

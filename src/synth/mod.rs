@@ -14,14 +14,18 @@
 //! and Ray.
 //!
 //! Files: [`spec`] (the spec and its top-level keys) on [`sources`] (its source lists) on
-//! `files.rs` (the files and folders it names); [`draw`] (sample k); [`tar`] (a chunk's
+//! `files.rs` (the files and folders it names); [`draw`] (sample k); [`camera_effects`] and
+//! [`edit`] (what a sample's render becomes: a photo as a camera writes it, the true
+//! edit beside it); [`tar`] (a chunk's
 //! bytes); `chunk.rs` (a chunk's file, its record, the check that skips it); [`shard`];
 //! this file (the engine, running a shard, verifying, the manifest).
 
 pub mod augment;
 pub mod background;
+pub mod camera_effects;
 mod chunk;
 pub mod draw;
+pub mod edit;
 mod files;
 pub mod perturb;
 pub mod shard;
@@ -166,7 +170,7 @@ pub fn render_chunk(
     let first = c * spec.chunk_size;
     let width = tar::key_width(spec.count);
     let one = |k: u64| -> Result<tar::Keyed> {
-        let sample = spec.sample(k)?;
+        let mut sample = spec.sample(k)?;
         let batch = Batch::single(sample.scene.clone())
             .map_err(|e| Error::Invalid(format!("sample {k}: {e}")))?;
         let image = engine
@@ -174,8 +178,7 @@ pub fn render_chunk(
             .render(&batch)
             .map_err(|e| Error::Invalid(format!("sample {k}: {e}")))?
             .remove(0);
-        let image = sample.compose(image);
-        let members = tar::members(&sample, &image, &engine.label);
+        let members = edit::finish(&mut sample, image, engine)?;
         progress(1);
         Ok((format!("{k:0width$}"), members))
     };
@@ -320,7 +323,7 @@ fn write_manifest(spec: &Spec, dir: &Path, renderer: &str, hash: bool) -> Result
         "complete": present.len() as u64 == total,
         "image_size": [spec.image_size.1, spec.image_size.0],
         "env_size": [spec.env_size.0, spec.env_size.1],
-        "members": tar::MEMBERS,
+        "members": spec.members(),
         "chunks": present.iter().map(|r| serde_json::json!({
             "file": r.file, "first": r.first, "count": r.count,
             "bytes": r.bytes, "sha256": r.sha256,

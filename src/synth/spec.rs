@@ -19,6 +19,7 @@ use serde_json::Value;
 use sha2::{Digest, Sha256};
 
 use super::background::{self, Background};
+use super::camera_effects::CameraEffects;
 use super::sources::{
     self, EnvSource, MaterialItem, SampleNormals, Weighted, image_dims, serde_message,
 };
@@ -46,6 +47,8 @@ struct RawSpec {
     envs: Vec<Value>,
     materials: Vec<Value>,
     backgrounds: Option<Vec<Value>>,
+    camera_effects: Option<Value>,
+    edit: Option<Value>,
 }
 
 /// A checked and loaded spec.
@@ -75,6 +78,10 @@ pub struct Spec {
     pub materials: Vec<Weighted<MaterialItem>>,
     /// Background sources (black when the spec gives none).
     pub backgrounds: Vec<Weighted<Background>>,
+    /// Camera effects each sample draws (none when the spec gives none).
+    pub camera_effects: Option<CameraEffects>,
+    /// Material sources of the true edit (none: no edit).
+    pub edit: Option<Vec<Weighted<MaterialItem>>>,
     /// SHA-256 of the spec's content and of every input file, hex.
     pub digest: String,
 }
@@ -185,6 +192,13 @@ impl Spec {
             &mut hasher,
             &err,
         )?;
+        let camera_effects = (raw.camera_effects.as_ref())
+            .map(CameraEffects::parse)
+            .transpose()
+            .map_err(err)?;
+        let edit = (raw.edit.as_ref())
+            .map(|v| super::edit::materials(v, &base, &mut hasher, &err))
+            .transpose()?;
 
         Ok(Spec {
             path: path.to_path_buf(),
@@ -199,6 +213,8 @@ impl Spec {
             envs,
             materials,
             backgrounds,
+            camera_effects,
+            edit,
             digest: hex(&hasher.finalize()),
         })
     }

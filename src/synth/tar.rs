@@ -1,7 +1,8 @@
 //! Chunks as WebDataset-style tar files with reproducible bytes: ustar headers with mtime
 //! 0, uid and gid 0, no user or group names, mode 0644, members sorted by name. Each
 //! sample `k` is six members sharing the key `k` (zero-padded): `.env.npy`, `.image.npy`,
-//! `.mask.npy`, `.material.json`, `.normals.npy` and `.params.json`.
+//! `.mask.npy`, `.material.json`, `.normals.npy` and `.params.json`; a spec with an `edit`
+//! adds `.edit.npy` and `.edit_material.json` before them ([`super::edit`]).
 
 use crate::error::{Error, Result};
 use crate::scene::Image;

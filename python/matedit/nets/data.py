@@ -30,6 +30,7 @@ import numpy as np
 import torch
 
 MEMBERS = ("env.npy", "image.npy", "material.json", "normals.npy")
+EDIT = "edit.npy"  # the true edit, in datasets whose spec has "edit" (docs/synth.md)
 
 
 def chunks(folder, allow_none: bool = False) -> list[dict]:
@@ -61,7 +62,8 @@ def spec_digest(folder) -> str | None:
 def decode(key: str, members: dict[str, bytes], where: str) -> dict:
     """One sample's tensors from its tar members: image, normals, env (float32, channels
     last), mask (bool; mask.npy where present, else normals != 0), ctrl (float32 (108,)),
-    index (int64)."""
+    index (int64); edit (float32, as image) where the sample has edit.npy. Other members
+    are ignored."""
     missing = [m for m in MEMBERS if m not in members]
     if missing:
         raise ValueError(f"{where}: sample {key}: missing {', '.join(missing)}")
@@ -69,11 +71,14 @@ def decode(key: str, members: dict[str, bytes], where: str) -> dict:
         arr = {m.split(".")[0]: np.load(io.BytesIO(members[m])) for m in MEMBERS if m.endswith(".npy")}
         ctrl = np.asarray(json.loads(members["material.json"])["ctrl"], dtype=np.float32)
         mask = np.load(io.BytesIO(members["mask.npy"])) != 0 if "mask.npy" in members else None
+        if EDIT in members:
+            arr["edit"] = np.load(io.BytesIO(members[EDIT]))
     except Exception as e:
         raise ValueError(f"{where}: sample {key}: unreadable ({e})") from None
     if mask is None:
         mask = np.any(arr["normals"] != 0, axis=-1)
-    if ctrl.shape != (108,) or arr["image"].shape != arr["normals"].shape or mask.shape != arr["image"].shape[:2]:
+    shapes = {arr["image"].shape, arr["normals"].shape, arr.get("edit", arr["image"]).shape}
+    if ctrl.shape != (108,) or len(shapes) != 1 or mask.shape != arr["image"].shape[:2]:
         raise ValueError(f"{where}: sample {key}: inconsistent shapes")
     out = {k: torch.from_numpy(np.ascontiguousarray(v, dtype=np.float32)) for k, v in arr.items()}
     out.update(mask=torch.from_numpy(mask), ctrl=torch.from_numpy(ctrl), index=torch.tensor(int(key)))
