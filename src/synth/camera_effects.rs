@@ -2,7 +2,9 @@
 //! camera writes a photo, then read back as the edit pipeline reads a JPEG photo, so that
 //! networks train on what they will be given.
 //!
-//! Per sample, in this order: exposure (a gain of 2^stops) -> defocus (the background
+//! Per sample, in this order: exposure (a gain that puts the frame's mean luminance at
+//! [`MIDDLE_GREY`], times 2^stops; the sample's light is scaled by the same gain, so that
+//! the image stays the render of its light) -> defocus (the background
 //! layer blurred by a Gaussian, the object kept sharp) -> vignette (a radial fall-off) ->
 //! noise (read noise and shot noise) -> 8-bit sRGB (a plain clip to [0, 1], as
 //! [`display_value`] does) -> JPEG encoded and decoded at a drawn quality (if asked) ->
@@ -16,6 +18,10 @@ use crate::error::{Error, Result};
 use crate::io::png::{Preview, display_value, srgb_decode};
 use crate::scene::Image;
 use crate::splitmix::SplitMix;
+
+/// The frame's mean luminance after an exposure of 0 stops: a camera's automatic exposure
+/// puts the mean at about middle grey.
+pub const MIDDLE_GREY: f64 = 0.18;
 
 /// Largest defocus sigma, pixels (the blur's radius is 3 sigma).
 pub const MAX_DEFOCUS: f64 = 64.0;
@@ -181,16 +187,30 @@ impl Drawn {
     /// image of the same scene (the edit), all with these draws, the first image's mean
     /// and one noise field, so that they differ only where their pixels did.
     /// `background` (the layer behind the object, `None`: black) and `mask` (the object)
-    /// are the sample's. Returns the read noise's standard deviation (linear units).
+    /// are the sample's. Returns the read noise's standard deviation (linear units) and
+    /// the exposure's gain, by which the caller scales the sample's light.
     pub fn develop(
         &self,
         images: &mut [Image],
         background: Option<&[[f32; 3]]>,
         mask: &[bool],
-    ) -> Result<f64> {
+    ) -> Result<(f64, f64)> {
         let Some(first) = images.first() else {
-            return Ok(0.0);
+            return Ok((0.0, 1.0));
         };
+        let mean = first
+            .pixels
+            .iter()
+            .map(|p| 0.2126 * p[0] as f64 + 0.7152 * p[1] as f64 + 0.0722 * p[2] as f64)
+            .sum::<f64>()
+            / first.pixels.len().max(1) as f64;
+        // a black frame keeps its level; the gain stays within 1e-4..1e4
+        let auto = if mean > 1e-12 {
+            (MIDDLE_GREY / mean).clamp(1e-4, 1e4)
+        } else {
+            1.0
+        };
+        let gain = auto * self.exposure_stops.unwrap_or(0.0).exp2();
         let (w, h) = (first.width, first.height);
         if let (Some(bg), Some(sigma)) = (background, self.defocus_sigma)
             && sigma > 0.0
@@ -205,7 +225,6 @@ impl Drawn {
                 }
             }
         }
-        let gain = self.exposure_stops.unwrap_or(0.0).exp2();
         let v = self.vignette.unwrap_or(0.0);
         if gain != 1.0 || v != 0.0 {
             let (cx, cy) = (w as f64 / 2.0, h as f64 / 2.0);
@@ -239,7 +258,7 @@ impl Drawn {
                 ];
             }
         }
-        Ok(read_std)
+        Ok((read_std, gain))
     }
 
     /// Read and shot noise from one field of standard normals: value x becomes
@@ -424,6 +443,16 @@ mod tests {
         assert!(lo.iter().flatten().all(|v| table.contains(v)));
     }
 
+    /// The automatic exposure's gain: the mean luminance to middle grey.
+    fn auto_gain(im: &Image) -> f64 {
+        let lum: f64 = im
+            .pixels
+            .iter()
+            .map(|p| 0.2126 * p[0] as f64 + 0.7152 * p[1] as f64 + 0.0722 * p[2] as f64)
+            .sum();
+        MIDDLE_GREY / (lum / im.pixels.len() as f64)
+    }
+
     #[test]
     fn noise_is_shared_and_scales_with_its_level() {
         let im = ramp(32, 32);
@@ -434,16 +463,17 @@ mod tests {
             ..Drawn::default()
         };
         let mut two = [im.clone(), im.clone()];
-        let read = d.develop(&mut two, None, &mask).unwrap();
+        let (read, gain) = d.develop(&mut two, None, &mask).unwrap();
         assert_eq!(two[0].pixels, two[1].pixels);
+        assert!((gain - auto_gain(&im)).abs() < 1e-12 * gain);
         let mean = im
             .pixels
             .iter()
             .flatten()
-            .map(|&c| f64::from(c))
+            .map(|&c| f64::from(c * gain as f32))
             .sum::<f64>()
             / (32.0 * 32.0 * 3.0);
-        assert!((read - 0.1 * mean).abs() < 1e-9, "{read} {mean}");
+        assert!((read - 0.1 * mean).abs() < 1e-7, "{read} {mean}");
         assert_ne!(
             two[0].pixels,
             [im.clone()].map(|mut i| {
@@ -481,6 +511,7 @@ mod tests {
             defocus_sigma: Some(2.0),
             ..Drawn::default()
         };
+        let gain = auto_gain(&im) as f32;
         let mut out = [im];
         d.develop(&mut out, Some(&bg), &mask).unwrap();
         let table = srgb8_table();
@@ -488,10 +519,10 @@ mod tests {
         // the object is kept (8-bit), the stripes are blurred to their mean
         assert_eq!(
             out[0].pixels[0],
-            [0.5, 0.1, 0.9].map(|c| table[display_value(c, &Preview::default()) as usize])
+            [0.5, 0.1, 0.9].map(|c| table[display_value(c * gain, &Preview::default()) as usize])
         );
         let mid = out[0].pixels[10 * w + 8][0];
-        let want = i32::from(display_value(0.4, &Preview::default()));
+        let want = i32::from(display_value(0.4 * gain, &Preview::default()));
         assert!((code(mid) - want).abs() <= 1, "{mid}");
     }
 }

@@ -142,12 +142,16 @@ pub(super) fn finish(sample: &mut Sample, render: Image, engine: &Engine) -> Res
         images.push(sample.compose(render));
     }
     if let Some(fx) = &sample.camera_effects {
-        let read = fx.develop(&mut images, sample.background.as_deref(), &sample.mask)?;
-        if let (Some(_), Some(o)) = (
-            fx.noise_level,
-            sample.params["camera_effects"].as_object_mut(),
-        ) {
-            o.insert("read_noise_std".into(), json!(read));
+        let (read, gain) = fx.develop(&mut images, sample.background.as_deref(), &sample.mask)?;
+        let gain32 = gain as f32;
+        for t in sample.scene.env.texels.iter_mut() {
+            *t = t.map(|c| c * gain32);
+        }
+        if let Some(o) = sample.params["camera_effects"].as_object_mut() {
+            o.insert("gain".into(), json!(gain));
+            if fx.noise_level.is_some() {
+                o.insert("read_noise_std".into(), json!(read));
+            }
         }
     }
     let mut members = tar::members(sample, &images[0], &engine.label);

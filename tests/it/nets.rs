@@ -74,7 +74,8 @@ fn predictions_match_pytorch() {
             levels: 2,
             env_height: 8,
             env_width: 16,
-            basis: 90
+            basis: 90,
+            image_size: 64
         }
     );
     check_cases(

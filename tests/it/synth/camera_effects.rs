@@ -171,7 +171,7 @@ fn jpeg_quality_changes_the_bytes() {
 }
 
 #[test]
-fn no_noise_no_jpeg_no_exposure_leaves_only_8_bit_quantisation() {
+fn no_noise_no_jpeg_no_exposure_leaves_the_auto_exposure_and_8_bit_quantisation() {
     let t = dir();
     let plain = synth::Spec::load(&spec(t.path(), "plain.json", "")).unwrap();
     let extra = r#""camera_effects": {"noise": [0, 0], "exposure": [0, 0]}"#;
@@ -181,12 +181,23 @@ fn no_noise_no_jpeg_no_exposure_leaves_only_8_bit_quantisation() {
     for (x, y) in samples(&plain, 0).iter().zip(&samples(&fx, 0)) {
         let (_, _, a) = npy_rgb(get(x, "image.npy"));
         let (_, _, b) = npy_rgb(get(y, "image.npy"));
+        // the frame's mean luminance goes to middle grey, and the light with it
+        let mean = a
+            .iter()
+            .map(|p| 0.2126 * p[0] as f64 + 0.7152 * p[1] as f64 + 0.0722 * p[2] as f64)
+            .sum::<f64>()
+            / a.len() as f64;
+        let gain = (matedit::synth::camera_effects::MIDDLE_GREY / mean) as f32;
         let quantised: Vec<[f32; 3]> = a
             .iter()
-            .map(|p| p.map(|v| table[matedit::io::png::display_value(v, &preview) as usize]))
+            .map(|p| p.map(|v| table[matedit::io::png::display_value(v * gain, &preview) as usize]))
             .collect();
         assert_eq!(b, quantised);
         assert_ne!(a, b);
+        let (_, _, env_a) = npy_rgb(get(x, "env.npy"));
+        let (_, _, env_b) = npy_rgb(get(y, "env.npy"));
+        let scaled: Vec<[f32; 3]> = env_a.iter().map(|p| p.map(|v| v * gain)).collect();
+        assert_eq!(env_b, scaled);
     }
 }
 
