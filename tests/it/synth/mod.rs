@@ -6,6 +6,7 @@
 //! Datasets are tiny (16 x 16 images, 8 x 16 maps, 12 samples in chunks of 4, `--device
 //! cpu`), except the spec of the documentation (64 x 64, 12 samples).
 
+mod photo;
 mod refusals;
 mod renders;
 mod shards;
