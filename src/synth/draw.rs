@@ -183,7 +183,8 @@ impl Spec {
         if self.world.elevation.is_some() {
             params["elevation"] = json!(sv.elevation);
         }
-        if let Some(p) = fparams {
+        if let Some(mut p) = fparams {
+            p["margin"] = json!(sv.margin);
             params["floor"] = p;
         }
         Ok(Sample {
@@ -219,6 +220,7 @@ impl Spec {
         let view = crate::shapes::View {
             camera: sv.camera,
             rotation: super::world::pitched(rotation, sv.elevation),
+            margin: sv.margin,
             ..crate::shapes::View::new(w, h)
         };
         if self.world.floors.is_some() {

@@ -46,7 +46,13 @@ pub struct SampleView {
     pub camera: Camera,
     /// Elevation, degrees.
     pub elevation: f64,
+    /// The share of the frame left empty around the object ([`crate::shapes::View`]'s
+    /// margin): drawn in [`FLOOR_MARGIN`] with a floor, so that the floor shows around it.
+    pub margin: f64,
 }
+
+/// The range of margins around an object on a floor.
+pub const FLOOR_MARGIN: [f64; 2] = [0.15, 0.45];
 
 /// The raw keys of a spec that [`World::parse`] reads.
 pub(super) struct RawWorld<'a> {
@@ -154,7 +160,15 @@ impl World {
             Some([lo, hi]) => lo + (hi - lo) * rng.uniform(),
             None => 0.0,
         };
-        SampleView { camera, elevation }
+        let margin = match self.floors {
+            Some(_) => FLOOR_MARGIN[0] + (FLOOR_MARGIN[1] - FLOOR_MARGIN[0]) * rng.uniform(),
+            None => crate::shapes::DEFAULT_MARGIN,
+        };
+        SampleView {
+            camera,
+            elevation,
+            margin,
+        }
     }
 }
 
