@@ -75,7 +75,6 @@ fn range(v: &Value) -> Option<[f64; 2]> {
 impl World {
     /// The spec's camera (perspective at the low end of a range) and its photo-like
     /// options, checked; errors name the key or item.
-    #[allow(clippy::too_many_arguments)]
     pub(super) fn parse(
         raw: RawWorld,
         normals: &[Weighted<SampleNormals>],

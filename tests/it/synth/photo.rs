@@ -141,7 +141,7 @@ fn bad_photo_options_are_refused() {
         let t = dir();
         let spec = spec_with(t.path(), extra);
         // a later key replaces an earlier one: "normals" above replaces the shapes
-        let e = synth::Spec::load(&spec).err().expect(extra).to_string();
+        let e = synth::Spec::load(&spec).expect_err(extra).to_string();
         assert!(e.contains(expect), "{extra}: expected '{expect}' in: {e}");
         assert_eq!(e.lines().count(), 1, "{e}");
     }
