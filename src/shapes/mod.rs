@@ -59,6 +59,61 @@ pub fn camera_space(mesh: &Mesh, view: &View) -> Result<Mesh> {
     })
 }
 
+/// What [`render_geometry`] draws: the normals and mask of [`render_normals`], each
+/// covered pixel's camera-space point, and the placed mesh ([`camera_space`]).
+#[derive(Clone, Debug)]
+pub struct Geometry {
+    /// The normals, as [`render_normals`] gives them.
+    pub normals: NormalMap,
+    /// The pixels the mesh covers.
+    pub mask: Vec<bool>,
+    /// The camera-space point seen at each pixel ([0, 0, 0] where the mask is unset).
+    pub positions: Vec<[f64; 3]>,
+    /// The mesh in camera space.
+    pub placed: Mesh,
+}
+
+/// [`render_normals`] with each pixel's camera-space point and the placed mesh: what the
+/// floors and shadows of `matedit synth` need. The normals and mask are the same bits.
+pub fn render_geometry(mesh: &Mesh, view: &View) -> Result<Geometry> {
+    mesh.validate().map_err(crate::error::Error::Invalid)?;
+    view.validate()?;
+    let placed = view::place(mesh, view)?;
+    let ids = raster::visible(&mesh.triangles, &placed, view);
+    let w = view.width;
+    let (normals, positions): (Vec<[f32; 3]>, Vec<[f64; 3]>) = ids
+        .par_iter()
+        .enumerate()
+        .map(|(i, &t)| {
+            if t == u32::MAX {
+                return ([0.0; 3], [0.0; 3]);
+            }
+            let tri = mesh.triangles[t as usize];
+            let n = raster::normal_at(tri, &placed, view, i % w, i / w)
+                .map_or([0.0; 3], loader_stable_unit);
+            let p = raster::position_at(tri, &placed, view, i % w, i / w).unwrap_or([0.0; 3]);
+            if n == [0.0; 3] {
+                ([0.0; 3], [0.0; 3])
+            } else {
+                (n, p)
+            }
+        })
+        .unzip();
+    let mask = normals.iter().map(|n| *n != [0.0; 3]).collect();
+    let f32s = |v: &[f64; 3]| v.map(|c| c as f32);
+    let placed_mesh = Mesh {
+        positions: placed.positions.iter().map(f32s).collect(),
+        normals: Some(placed.normals.iter().map(f32s).collect()),
+        triangles: mesh.triangles.clone(),
+    };
+    Ok(Geometry {
+        normals: NormalMap::new(view.width, view.height, normals)?,
+        mask,
+        positions,
+        placed: placed_mesh,
+    })
+}
+
 /// The camera-space normals of `mesh` seen through `view`, and the mask of pixels it
 /// covers (rows first). Smooth normals interpolate the vertex normals (the mesh's own, or
 /// area-weighted ones where it has none) with perspective-correct weights and normalise

@@ -169,6 +169,39 @@ fn draw(
     }
 }
 
+/// The camera-space point of triangle `tri` seen at the centre of pixel (px, py): its
+/// corners interpolated with the perspective-correct weights [`normal_at`] uses. `None`
+/// where the triangle has no area.
+pub(crate) fn position_at(
+    tri: [u32; 3],
+    placed: &Placed,
+    view: &View,
+    px: usize,
+    py: usize,
+) -> Option<V3> {
+    let w = corner_weights(tri, placed, view, px, py)?;
+    Some(blend(&placed.positions, tri, w))
+}
+
+/// The perspective-correct weights of `tri`'s corners at the centre of pixel (px, py):
+/// the screen-space weights b_k / w_k, renormalised (1 / w = 1 when orthographic).
+fn corner_weights(tri: [u32; 3], placed: &Placed, view: &View, px: usize, py: usize) -> Option<V3> {
+    let s = screen(tri, placed, view)?;
+    let b = weights(&s, inv_area(&s)?, px as f64 + 0.5, py as f64 + 0.5);
+    let lw = [0, 1, 2].map(|k| b[k] * s.inv_w[k]);
+    let total = lw[0] + lw[1] + lw[2];
+    Some(lw.map(|l| l / total))
+}
+
+/// The corners' `values` of `tri` weighted by `w`.
+fn blend(values: &[V3], tri: [u32; 3], w: V3) -> V3 {
+    let mut v = [0.0; 3];
+    for k in 0..3 {
+        v = add(v, scale(values[tri[k] as usize], w[k]));
+    }
+    v
+}
+
 /// The normal at pixel (px, py) of triangle `tri`: the vertex normals interpolated
 /// (perspective-correct) and normalised, or the face normal when `flat`; then turned to
 /// face the viewer: the face normal is flipped if it faces away from the pixel's view
@@ -183,8 +216,7 @@ pub(crate) fn normal_at(
     px: usize,
     py: usize,
 ) -> Option<V3> {
-    let s = screen(tri, placed, view)?;
-    let b = weights(&s, inv_area(&s)?, px as f64 + 0.5, py as f64 + 0.5);
+    let w = corner_weights(tri, placed, view, px, py)?;
     let [p0, p1, p2] = tri.map(|v| placed.positions[v as usize]);
     let wp = view.camera.view_dir(px, py, view.width, view.height);
     let mut face = unit(cross(sub(p1, p0), sub(p2, p0)))?;
@@ -194,14 +226,7 @@ pub(crate) fn normal_at(
     if view.flat {
         return Some(face);
     }
-    // perspective-correct weights: b_k / w_k, renormalised (1 / w = 1 when orthographic)
-    let lw = [0, 1, 2].map(|k| b[k] * s.inv_w[k]);
-    let total = lw[0] + lw[1] + lw[2];
-    let mut n = [0.0; 3];
-    for k in 0..3 {
-        n = add(n, scale(placed.normals[tri[k] as usize], lw[k] / total));
-    }
-    let Some(mut n) = unit(n) else {
+    let Some(mut n) = unit(blend(&placed.normals, tri, w)) else {
         return Some(face);
     };
     if dot(n, face) < 0.0 {

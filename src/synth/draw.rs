@@ -6,10 +6,12 @@ use serde_json::{Value, json};
 use super::augment::Views;
 use super::sources::{MaterialItem, SampleMaterial, SampleNormals, Weighted};
 use super::spec::Spec;
+use super::world::{SampleView, World};
 use crate::camera::Camera;
 use crate::error::{Error, Result};
 use crate::material::{Material, N_PARAMS};
 use crate::scene::{NormalMap, Scene};
+use crate::shapes::Geometry;
 use crate::spline::N_CTRL_POINTS;
 use crate::splitmix::SplitMix;
 
@@ -24,6 +26,10 @@ pub struct Sample {
     pub mask: Vec<bool>,
     /// What is seen elsewhere (`None`: black).
     pub background: Option<Vec<[f32; 3]>>,
+    /// A factor on the object's rendered pixels: its visibility, where shadows are on.
+    pub shade: Option<Vec<f32>>,
+    /// The floor's visibility at each pixel (1 off the floor), where shadows are on.
+    pub floor_visibility: Option<Vec<f32>>,
     /// The draws: sources, rotation, mixing weights, seed and index (JSON).
     pub params: Value,
     /// The camera effects' draws, if the spec asks for them.
@@ -53,6 +59,11 @@ impl Spec {
         }
         let mut rng = SplitMix::for_sample(self.seed, k);
         let (w, h) = self.image_size;
+        // the photo-like options draw from a stream of their own: without them, a spec
+        // draws what it always drew
+        let mut wrng = World::rng(self.seed, k);
+        let sv = self.world.draw_view(self.camera, &mut wrng);
+        let mut geometry = None;
 
         let ni = pick(&mut rng, &self.normals);
         let (normals, nparams) = match &self.normals[ni].source {
@@ -66,7 +77,8 @@ impl Spec {
             }
             SampleNormals::Shape(shape, views) => {
                 let seed = rng.next_u64();
-                let (m, rotation) = self.draw_mesh(&shape.mesh(seed), views, &mut rng)?;
+                let (m, rotation, g) = self.draw_mesh(&shape.mesh(seed), views, &mut rng, sv)?;
+                geometry = g;
                 let p = json!({
                     "shape": shape.to_string(),
                     "shape_seed": seed,
@@ -76,7 +88,8 @@ impl Spec {
             }
             SampleNormals::Meshes(meshes, views) => {
                 let (label, mesh) = &meshes[rng.below(meshes.len())];
-                let (m, rotation) = self.draw_mesh(mesh, views, &mut rng)?;
+                let (m, rotation, g) = self.draw_mesh(mesh, views, &mut rng, sv)?;
+                geometry = g;
                 let p = json!({
                     "mesh": label,
                     "rotation": [rotation.yaw, rotation.pitch, rotation.roll],
@@ -107,6 +120,11 @@ impl Spec {
         };
         let (env, changes) = src.augment.apply(env, &mut rng)?;
         merge(&mut eparams, changes);
+        let env = if sv.elevation != 0.0 {
+            super::world::tilt(&env, sv.elevation)?
+        } else {
+            env
+        };
 
         let (mi, material, mparams) = draw_material(&mut rng, &self.materials)?;
 
@@ -115,7 +133,24 @@ impl Spec {
         let (background, bparams) =
             self.backgrounds[bi]
                 .source
-                .draw(&env, self.camera, self.image_size, &mut rng);
+                .draw(&env, sv.camera, self.image_size, &mut rng);
+        let (background, shade, floor_visibility, fparams) = match (&self.world.floors, &geometry) {
+            (Some(floors), Some(g)) => {
+                let fi = pick(&mut wrng, floors);
+                let scene = super::floor::Scene {
+                    geometry: g,
+                    env: &env,
+                    camera: sv.camera,
+                    elevation: sv.elevation,
+                    size: self.image_size,
+                    shadows: self.world.shadows,
+                };
+                let d = floors[fi].source.draw(&scene, background, &mut wrng);
+                let p = json!({ "item": fi, "floor": d.params });
+                (d.background, d.shade, d.floor_visibility, Some(p))
+            }
+            _ => (background, None, None, None),
+        };
 
         let mut params = json!({
             "index": k,
@@ -131,24 +166,33 @@ impl Spec {
             "image_size": [h, w],
             "env_size": [self.env_size.0, self.env_size.1],
             "convention": self.convention.name(),
-            "fov": match self.camera {
+            "fov": match sv.camera {
                 Camera::Perspective { fov_y_deg } => json!(fov_y_deg),
                 Camera::Orthographic => Value::Null,
             },
         });
         // from generators of their own: a spec without these keys draws what it did
         let (camera_effects, edit) = self.draw_extras(k, &mut params)?;
+        if self.world.elevation.is_some() {
+            params["elevation"] = json!(sv.elevation);
+        }
+        if let Some(mut p) = fparams {
+            p["margin"] = json!(sv.margin);
+            params["floor"] = p;
+        }
         Ok(Sample {
             index: k,
             mask,
             background,
             camera_effects,
             edit,
+            shade,
+            floor_visibility,
             scene: Scene {
                 normals,
                 env,
                 material,
-                camera: self.camera,
+                camera: sv.camera,
             },
             params,
         })
@@ -156,22 +200,33 @@ impl Spec {
 }
 
 impl Spec {
-    /// `mesh`'s normals at the image size under the spec's camera, turned by a rotation
-    /// of `views` drawn from `rng`.
+    /// `mesh`'s normals at the image size under the sample's camera, turned by a
+    /// rotation of `views` drawn from `rng` and pitched by the sample's elevation; with a
+    /// floor, its geometry too.
     fn draw_mesh(
         &self,
         mesh: &crate::shapes::Mesh,
         views: &Views,
         rng: &mut SplitMix,
-    ) -> Result<(NormalMap, crate::shapes::Rotation)> {
+        sv: SampleView,
+    ) -> Result<(NormalMap, crate::shapes::Rotation, Option<Geometry>)> {
         let rotation = views.draw(rng);
         let (w, h) = self.image_size;
         let view = crate::shapes::View {
-            camera: self.camera,
-            rotation,
+            camera: sv.camera,
+            rotation: super::world::pitched(rotation, sv.elevation),
+            margin: sv.margin,
             ..crate::shapes::View::new(w, h)
         };
-        Ok((crate::shapes::render_normals(mesh, &view)?.0, rotation))
+        if self.world.floors.is_some() {
+            let g = crate::shapes::render_geometry(mesh, &view)?;
+            return Ok((g.normals.clone(), rotation, Some(g)));
+        }
+        Ok((
+            crate::shapes::render_normals(mesh, &view)?.0,
+            rotation,
+            None,
+        ))
     }
 }
 
@@ -179,6 +234,13 @@ impl Sample {
     /// The sample's image from the layer's render of its scene: the render where the mask
     /// is set, the background elsewhere (the render itself when the background is black).
     pub fn compose(&self, mut render: crate::scene::Image) -> crate::scene::Image {
+        if let Some(shade) = &self.shade {
+            for ((p, s), m) in render.pixels.iter_mut().zip(shade).zip(&self.mask) {
+                if *m {
+                    *p = p.map(|v| v * s);
+                }
+            }
+        }
         if let Some(bg) = &self.background {
             for ((p, b), m) in render.pixels.iter_mut().zip(bg).zip(&self.mask) {
                 if !m {

@@ -14,9 +14,10 @@
 //! and Ray.
 //!
 //! Files: [`spec`] (the spec and its top-level keys) on [`sources`] (its source lists) on
-//! `files.rs` (the files and folders it names); [`draw`] (sample k); [`camera_effects`] and
-//! [`edit`] (what a sample's render becomes: a photo as a camera writes it, the true
-//! edit beside it); [`tar`] (a chunk's
+//! `files.rs` (the files and folders it names); [`draw`] (sample k); [`world`] (the
+//! photo-like options: fov and elevation ranges) with [`floor`], [`textures`] and
+//! [`shadow`]; [`camera_effects`] and [`edit`] (what a sample's render becomes: a photo as
+//! a camera writes it, the true edit beside it); [`tar`] (a chunk's
 //! bytes); `chunk.rs` (a chunk's file, its record, the check that skips it); [`shard`];
 //! this file (the engine, running a shard, verifying, the manifest).
 
@@ -27,11 +28,15 @@ mod chunk;
 pub mod draw;
 pub mod edit;
 mod files;
+pub mod floor;
 pub mod perturb;
+pub mod shadow;
 pub mod shard;
 pub mod sources;
 pub mod spec;
 pub mod tar;
+pub mod textures;
+pub mod world;
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;

@@ -23,6 +23,7 @@ use super::camera_effects::CameraEffects;
 use super::sources::{
     self, EnvSource, MaterialItem, SampleNormals, Weighted, image_dims, serde_message,
 };
+use super::world::{RawWorld, World};
 use crate::camera::Camera;
 use crate::envmap::Convention;
 use crate::error::{Error, Result};
@@ -41,7 +42,10 @@ struct RawSpec {
     image_size: Value,
     env_size: Option<String>,
     chunk_size: Option<u64>,
-    fov: Option<f64>,
+    fov: Option<Value>,
+    elevation: Option<Value>,
+    floor: Option<Vec<Value>>,
+    shadows: Option<bool>,
     convention: Option<String>,
     normals: Vec<Value>,
     envs: Vec<Value>,
@@ -82,6 +86,8 @@ pub struct Spec {
     pub camera_effects: Option<CameraEffects>,
     /// Material sources of the true edit (none: no edit).
     pub edit: Option<Vec<Weighted<MaterialItem>>>,
+    /// The photo-like options: fov and elevation ranges, floor, shadows.
+    pub world: World,
     /// SHA-256 of the spec's content and of every input file, hex.
     pub digest: String,
 }
@@ -156,14 +162,6 @@ impl Spec {
                 }
             )));
         }
-        let camera = match raw.fov {
-            None => Camera::Orthographic,
-            Some(fov_y_deg) => {
-                let c = Camera::Perspective { fov_y_deg };
-                c.validate().map_err(|e| err(format!("fov: {e}")))?;
-                c
-            }
-        };
         let convention = match &raw.convention {
             None => Convention::default(),
             Some(s) => s
@@ -181,6 +179,20 @@ impl Spec {
         }
 
         let normals = sources::normals(&raw.normals, image_size, &base, &mut hasher, &err)?;
+        let (camera, world) = World::parse(
+            RawWorld {
+                fov: raw.fov.as_ref(),
+                elevation: raw.elevation.as_ref(),
+                floor: raw.floor.as_deref(),
+                shadows: raw.shadows,
+            },
+            &normals,
+            convention,
+            &base,
+            &mut hasher,
+            &err,
+        )?;
+        camera.validate().map_err(|e| err(format!("fov: {e}")))?;
         let envs = sources::envs(&raw.envs, env_size, convention, &base, &mut hasher, &err)?;
         let materials = sources::materials(&raw.materials, &base, &mut hasher, &err)?;
         let backgrounds = background::backgrounds(
@@ -215,6 +227,7 @@ impl Spec {
             backgrounds,
             camera_effects,
             edit,
+            world,
             digest: hex(&hasher.finalize()),
         })
     }

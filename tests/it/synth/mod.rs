@@ -7,6 +7,7 @@
 //! cpu`), except the spec of the documentation (64 x 64, 12 samples).
 
 mod camera_effects;
+mod photo;
 mod refusals;
 mod renders;
 mod shards;
