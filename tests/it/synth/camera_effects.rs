@@ -85,13 +85,19 @@ fn without_the_keys_a_sample_is_written_as_before() {
         "other bytes without the keys"
     );
 
-    // with them, the scene's members and draws are those of the spec without them
+    // with them, the scene's members and draws are those of the spec without them, the
+    // light scaled by the exposure's gain
     let with = synth::Spec::load(&spec(t.path(), "with.json", ALL)).unwrap();
     let (a, b) = (samples(&sp, 1), samples(&with, 1));
     for (x, y) in a.iter().zip(&b) {
-        for m in ["env.npy", "mask.npy", "material.json", "normals.npy"] {
+        for m in ["mask.npy", "material.json", "normals.npy"] {
             assert!(get(x, m) == get(y, m), "{m}");
         }
+        let gain = params(y)["camera_effects"]["gain"].as_f64().unwrap() as f32;
+        let (_, _, env_x) = npy_rgb(get(x, "env.npy"));
+        let (_, _, env_y) = npy_rgb(get(y, "env.npy"));
+        let scaled: Vec<[f32; 3]> = env_x.iter().map(|p| p.map(|v| v * gain)).collect();
+        assert_eq!(env_y, scaled);
         let mut p = params(y);
         let o = p.as_object_mut().unwrap();
         assert!(o.remove("camera_effects").is_some() && o.remove("edit").is_some());

@@ -20,8 +20,12 @@ mkdir -p "$out" /tmp/dev /tmp/site/matedit /tmp/runs
 t0=$(date +%s)
 stamp() { echo "[$(($(date +%s) - t0)) s] $*"; }
 
-for f in .gl/*.deb; do dpkg -x "$f" /; done
-ldconfig
+if ! ldconfig -p | grep -q libvulkan.so.1; then
+    for f in .gl/*.deb; do dpkg -x "$f" /; done
+    ldconfig
+fi
+icd=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
+[ -f $icd ] && export VK_DRIVER_FILES=$icd __EGL_VENDOR_LIBRARY_FILENAMES=/usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json
 xz -dc .dev/it.xz >/tmp/dev/it && chmod +x /tmp/dev/it
 cp -r python/matedit/. /tmp/site/matedit/
 xz -dc .dev/matedit.so.xz >/tmp/site/matedit/_matedit.abi3.so
@@ -31,14 +35,14 @@ nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader
 stamp "unpacked"
 
 # the synthesis: 12 shards of one process each, one thread each, writing one folder
-shards=12
+shards=${SHARDS:-12}
 for i in $(seq 0 $((shards - 1))); do
     python3 -c "import matedit; matedit.synth('/tmp/dev/photo/train.json', '/tmp/ds', shard=($i, $shards), threads=1)" \
         >/tmp/runs/synth-$i.log 2>&1 &
 done
 
 # the GPU tests meanwhile (the names as .ci/run reruns them)
-MATEDIT_REQUIRE_GPU=1 timeout 150 /tmp/dev/it gpu every_backend_gives_the_references_corrections \
+MATEDIT_REQUIRE_GPU=1 timeout ${TEST_SECONDS:-150} /tmp/dev/it gpu every_backend_gives_the_references_corrections \
     --test-threads 4 >"$out/gpu_tests.log" 2>&1
 stamp "GPU tests: exit $? ($(grep -c '\.\.\. ok' "$out/gpu_tests.log") ok, $(grep -c 'FAILED\|panicked' "$out/gpu_tests.log") failed)"
 until ls /tmp/ds/chunk-*.json >/dev/null 2>&1; do sleep 1; done
@@ -50,7 +54,7 @@ pids=()
 first=1
 for run in "$@"; do
     python3 -m matedit.nets.train "python/examples/nets/photo/$run.py" --out "/tmp/runs/$run" \
-        --stop-after "$((seconds - (first ? 0 : 60)))" >"/tmp/runs/$run.log" 2>&1 &
+        --stop-after "$((first ? seconds : seconds - 60))" >"/tmp/runs/$run.log" 2>&1 &
     pids+=($!)
     if [ $first = 1 ]; then sleep 60; first=0; fi
 done
