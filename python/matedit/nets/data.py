@@ -198,34 +198,45 @@ class ChunkStream(torch.utils.data.IterableDataset):
 class Resident:
     """Every sample of a synth folder in memory on `device` (images, normals, masks, lights
     and materials as stacked tensors), growing by `refresh()` as chunks appear; a chunk's
-    record is written after its tar, so a recorded chunk is complete."""
+    record is written after its tar, so a recorded chunk is complete. The tensors grow by
+    doubling their capacity, so that adding a chunk copies only the chunk."""
 
     def __init__(self, folder, device="cpu"):
         self.folder, self.device = str(folder), torch.device(device)
         self.loaded: set[str] = set()
-        self.tensors: dict[str, torch.Tensor] = {}
+        self.store: dict[str, torch.Tensor] = {}
+        self.count = 0
         self.refresh()
-        if not self.tensors:
+        if not self.count:
             chunks(folder)  # raises: no chunk records
 
     def __len__(self) -> int:
-        return len(self.tensors["index"]) if self.tensors else 0
+        return self.count
+
+    @property
+    def tensors(self) -> dict[str, torch.Tensor]:
+        return {k: v[: self.count] for k, v in self.store.items()}
 
     def refresh(self) -> int:
         """Loads the chunks recorded since the last call; returns how many samples came."""
         new = [r for r in chunks(self.folder, allow_none=True) if r["file"] not in self.loaded]
-        if not new:
-            return 0
-        parts = [collate([s for _, s in read_chunk(r["file"])]) for r in new]
-        parts = [{k: v.to(self.device) for k, v in p.items()} for p in parts]
-        if self.tensors:
-            parts.insert(0, self.tensors)
-        self.tensors = {k: torch.cat([p[k] for p in parts]) for k in parts[0]}
-        self.loaded.update(r["file"] for r in new)
+        for r in new:
+            part = collate([s for _, s in read_chunk(r["file"])])
+            n = len(part["index"])
+            if not self.store or self.count + n > len(self.store["index"]):
+                size = max(2 * len(self.store["index"]) if self.store else 0, self.count + n)
+                grown = {k: v.new_empty((size, *v.shape[1:]), device=self.device) for k, v in part.items()}
+                for k, v in self.store.items():
+                    grown[k][: self.count] = v[: self.count]
+                self.store = grown
+            for k, v in part.items():
+                self.store[k][self.count : self.count + n] = v.to(self.device)
+            self.count += n
+            self.loaded.add(r["file"])
         return sum(r["count"] for r in new)
 
     def batch(self, size: int, generator: torch.Generator) -> dict:
         """`size` samples drawn uniformly with replacement by `generator` (on the CPU, so
         that the draws do not depend on the device)."""
-        idx = torch.randint(len(self), (size,), generator=generator).to(self.device)
-        return {k: v[idx] for k, v in self.tensors.items()}
+        idx = torch.randint(self.count, (size,), generator=generator).to(self.device)
+        return {k: v[idx] for k, v in self.store.items()}

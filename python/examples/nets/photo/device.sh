@@ -30,7 +30,7 @@ xz -dc .dev/it.xz >/tmp/dev/it && chmod +x /tmp/dev/it
 cp -r python/matedit/. /tmp/site/matedit/
 xz -dc .dev/matedit.so.xz >/tmp/site/matedit/_matedit.abi3.so
 tar -C /tmp/dev -xJf .dev/data.tar.xz
-export PYTHONPATH=/tmp/site PYTHONUNBUFFERED=1
+export PYTHONPATH=/tmp/site PYTHONUNBUFFERED=1 PYTORCH_CUDA_ALLOC_CONF=expandable_segments:True
 nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader
 stamp "unpacked"
 
