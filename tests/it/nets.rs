@@ -292,6 +292,35 @@ fn bad_weight_files_are_named() {
     let msg = load_error(&wide);
     assert!(msg.contains("is too large"), "{msg}");
 
+    // the size the nets were trained at: what photos are analysed at; 64 when not given
+    let sized = |name: &str, size: usize| {
+        rewritten(dir.path(), name, |_, m| {
+            m.insert(
+                "config".into(),
+                format!(
+                    r#"{{"width": 8, "levels": 2, "env_height": 8, "env_width": 16, "image_size": {size}}}"#
+                ),
+            );
+        })
+    };
+    assert_eq!(
+        Nets::load(&sized("s128.safetensors", 128))
+            .unwrap()
+            .image_size(),
+        128
+    );
+    assert_eq!(
+        Nets::load(&data("weights.safetensors"))
+            .unwrap()
+            .image_size(),
+        64
+    );
+    let msg = load_error(&sized("odd.safetensors", 63));
+    assert!(
+        msg.contains("image_size 63 is not a multiple of 2^(levels - 1)"),
+        "{msg}"
+    );
+
     let format = rewritten(dir.path(), "format.safetensors", |_, m| {
         m.insert("format".into(), "matedit-nets 2".into());
     });
