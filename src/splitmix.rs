@@ -20,6 +20,20 @@ impl SplitMix {
         (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
     }
 
+    /// `n` standard normal draws (Box-Muller, both of each pair).
+    pub fn standard_normals(&mut self, n: usize) -> Vec<f64> {
+        let mut out = Vec::with_capacity(n + 1);
+        while out.len() < n {
+            let u1 = 1.0 - self.uniform(); // in (0, 1]
+            let u2 = std::f64::consts::TAU * self.uniform();
+            let r = (-2.0 * u1.ln()).sqrt();
+            out.push(r * u2.cos());
+            out.push(r * u2.sin());
+        }
+        out.truncate(n);
+        out
+    }
+
     /// Uniform in 0..n (n > 0), by a 128-bit multiply.
     pub fn below(&mut self, n: usize) -> usize {
         ((u128::from(self.next_u64()) * n as u128) >> 64) as usize

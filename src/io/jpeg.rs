@@ -50,3 +50,22 @@ pub fn decode_bytes(path: &Path, bytes: &[u8]) -> Result<Rgb8> {
     }
     Ok((w, h, pixels))
 }
+
+/// 8-bit RGB through a JPEG of quality `q` (jpeg-encoder: 4:2:0 below 90, 4:4:4 from 90)
+/// and back (zune-jpeg, the decoder photos go through).
+pub fn round_trip(rgb: &[u8], w: usize, h: usize, q: u8) -> Result<Vec<u8>> {
+    let fail = |m: String| Error::Invalid(format!("JPEG round trip: {m}"));
+    let (w16, h16) = match (u16::try_from(w), u16::try_from(h)) {
+        (Ok(a), Ok(b)) => (a, b),
+        _ => return Err(fail(format!("{w} x {h} is larger than JPEG allows"))),
+    };
+    let mut bytes = Vec::new();
+    jpeg_encoder::Encoder::new(&mut bytes, q)
+        .encode(rgb, w16, h16, jpeg_encoder::ColorType::Rgb)
+        .map_err(|e| fail(e.to_string()))?;
+    let (dw, dh, out) = decode_bytes(std::path::Path::new("camera_effects.jpeg"), &bytes)?;
+    if (dw, dh) != (w, h) {
+        return Err(fail(format!("decoded {dw} x {dh} for {w} x {h}")));
+    }
+    Ok(out)
+}

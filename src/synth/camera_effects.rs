@@ -14,7 +14,7 @@
 use serde::Deserialize;
 use serde_json::{Map, Value, json};
 
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::io::png::{Preview, display_value, srgb_decode};
 use crate::scene::Image;
 use crate::splitmix::SplitMix;
@@ -57,7 +57,7 @@ pub struct CameraEffects {
 
 /// One sample's draws.
 #[derive(Clone, Debug, Default, PartialEq)]
-pub struct Drawn {
+pub struct EffectDraws {
     /// Exposure, stops.
     pub exposure_stops: Option<f64>,
     /// Sigma of the background's blur, pixels.
@@ -121,7 +121,7 @@ impl CameraEffects {
 
     /// One sample's draws from `rng`, in a fixed order (exposure, defocus, vignette,
     /// noise level and seed, JPEG quality), each only if its range is given.
-    pub fn draw(&self, rng: &mut SplitMix) -> Drawn {
+    pub fn draw(&self, rng: &mut SplitMix) -> EffectDraws {
         let mut uniform = |r: Option<[f64; 2]>| r.map(|[lo, hi]| lo + (hi - lo) * rng.uniform());
         let exposure_stops = uniform(self.exposure);
         let defocus_sigma = uniform(self.defocus);
@@ -131,7 +131,7 @@ impl CameraEffects {
         let jpeg_quality = self
             .jpeg
             .map(|[lo, hi]| lo + rng.below(usize::from(hi - lo) + 1) as u8);
-        Drawn {
+        EffectDraws {
             exposure_stops,
             defocus_sigma,
             vignette,
@@ -164,7 +164,7 @@ fn range(
     Ok(Some([lo, hi]))
 }
 
-impl Drawn {
+impl EffectDraws {
     /// What the sample's params record of the draws.
     pub fn record(&self) -> Value {
         let mut o = Map::new();
@@ -246,7 +246,7 @@ impl Drawn {
                 .flat_map(|p| p.map(|c| display_value(c, &Preview::default())))
                 .collect();
             let rgb = match self.jpeg_quality {
-                Some(q) => jpeg_round_trip(&rgb, w, h, q)?,
+                Some(q) => crate::io::jpeg::round_trip(&rgb, w, h, q)?,
                 None => rgb,
             };
             let table = srgb8_table();
@@ -280,7 +280,7 @@ impl Drawn {
             return 0.0;
         }
         let shot = level * read; // variance per unit of signal: s m
-        let z = standard_normals(&mut SplitMix(seed), n);
+        let z = SplitMix(seed).standard_normals(n);
         for im in images.iter_mut() {
             for (c, z) in im.pixels.iter_mut().flatten().zip(&z) {
                 let x = f64::from(*c);
@@ -291,43 +291,9 @@ impl Drawn {
     }
 }
 
-/// `n` standard normal draws (Box-Muller, both of each pair).
-fn standard_normals(rng: &mut SplitMix, n: usize) -> Vec<f64> {
-    let mut out = Vec::with_capacity(n + 1);
-    while out.len() < n {
-        let u1 = 1.0 - rng.uniform(); // in (0, 1]
-        let u2 = std::f64::consts::TAU * rng.uniform();
-        let r = (-2.0 * u1.ln()).sqrt();
-        out.push(r * u2.cos());
-        out.push(r * u2.sin());
-    }
-    out.truncate(n);
-    out
-}
-
 /// The linear value of each 8-bit sRGB code: `srgb_decode(i / 255)`, as photos are read.
 pub fn srgb8_table() -> [f32; 256] {
     std::array::from_fn(|i| srgb_decode(i as f32 / 255.0))
-}
-
-/// 8-bit RGB through a JPEG of quality `q` (jpeg-encoder: 4:2:0 below 90, 4:4:4 from 90)
-/// and back (zune-jpeg, the decoder photos go through).
-pub fn jpeg_round_trip(rgb: &[u8], w: usize, h: usize, q: u8) -> Result<Vec<u8>> {
-    let fail = |m: String| Error::Invalid(format!("camera_effects: JPEG: {m}"));
-    let (w16, h16) = match (u16::try_from(w), u16::try_from(h)) {
-        (Ok(a), Ok(b)) => (a, b),
-        _ => return Err(fail(format!("{w} x {h} is larger than JPEG allows"))),
-    };
-    let mut bytes = Vec::new();
-    jpeg_encoder::Encoder::new(&mut bytes, q)
-        .encode(rgb, w16, h16, jpeg_encoder::ColorType::Rgb)
-        .map_err(|e| fail(e.to_string()))?;
-    let (dw, dh, out) =
-        crate::io::jpeg::decode_bytes(std::path::Path::new("camera_effects.jpeg"), &bytes)?;
-    if (dw, dh) != (w, h) {
-        return Err(fail(format!("decoded {dw} x {dh} for {w} x {h}")));
-    }
-    Ok(out)
 }
 
 #[cfg(test)]
@@ -428,9 +394,9 @@ mod tests {
         let im = ramp(32, 32);
         let mask = vec![false; 32 * 32];
         let dev = |q: u8| {
-            let d = Drawn {
+            let d = EffectDraws {
                 jpeg_quality: Some(q),
-                ..Drawn::default()
+                ..EffectDraws::default()
             };
             let mut out = [im.clone()];
             d.develop(&mut out, None, &mask).unwrap();
@@ -457,10 +423,10 @@ mod tests {
     fn noise_is_shared_and_scales_with_its_level() {
         let im = ramp(32, 32);
         let mask = vec![false; 32 * 32];
-        let d = Drawn {
+        let d = EffectDraws {
             noise_level: Some(0.1),
             noise_seed: Some(9),
-            ..Drawn::default()
+            ..EffectDraws::default()
         };
         let mut two = [im.clone(), im.clone()];
         let (read, gain) = d.develop(&mut two, None, &mask).unwrap();
@@ -477,14 +443,14 @@ mod tests {
         assert_ne!(
             two[0].pixels,
             [im.clone()].map(|mut i| {
-                Drawn::default()
+                EffectDraws::default()
                     .develop(std::slice::from_mut(&mut i), None, &mask)
                     .unwrap();
                 i
             })[0]
                 .pixels
         );
-        let z = standard_normals(&mut SplitMix(1), 20001);
+        let z = SplitMix(1).standard_normals(20001);
         let m = z.iter().sum::<f64>() / z.len() as f64;
         let v = z.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / z.len() as f64;
         assert!(m.abs() < 0.03 && (v - 1.0).abs() < 0.05, "{m} {v}");
@@ -507,9 +473,9 @@ mod tests {
                 *p = [0.5, 0.1, 0.9];
             }
         }
-        let d = Drawn {
+        let d = EffectDraws {
             defocus_sigma: Some(2.0),
-            ..Drawn::default()
+            ..EffectDraws::default()
         };
         let gain = auto_gain(&im) as f32;
         let mut out = [im];

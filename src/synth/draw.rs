@@ -4,6 +4,7 @@
 use serde_json::{Value, json};
 
 use super::augment::Views;
+use super::camera_effects::EffectDraws;
 use super::sources::{MaterialItem, SampleMaterial, SampleNormals, Weighted};
 use super::spec::Spec;
 use super::world::{SampleView, World};
@@ -14,6 +15,20 @@ use crate::scene::{NormalMap, Scene};
 use crate::shapes::Geometry;
 use crate::spline::N_CTRL_POINTS;
 use crate::splitmix::SplitMix;
+
+/// Mixed into a sample's generator for its camera effects' draws.
+const CAMERA_EFFECTS_STREAM: u64 = 0x63616d_6572615f;
+/// Mixed into a sample's generator for its edit material's draws.
+const EDIT_STREAM: u64 = 0x65646974_5f6d6174;
+
+/// A sample's edit: the second material and what made it.
+#[derive(Clone, Debug)]
+pub struct EditDraw {
+    /// The material the edit renders the object in.
+    pub material: Material,
+    /// What the sample's params record: the item and its draws.
+    pub record: Value,
+}
 
 /// A sample's inputs and the parameters that made it.
 #[derive(Clone, Debug)]
@@ -33,9 +48,9 @@ pub struct Sample {
     /// The draws: sources, rotation, mixing weights, seed and index (JSON).
     pub params: Value,
     /// The camera effects' draws, if the spec asks for them.
-    pub camera_effects: Option<super::camera_effects::Drawn>,
+    pub camera_effects: Option<super::camera_effects::EffectDraws>,
     /// The edit's material, if the spec asks for one.
-    pub edit: Option<super::edit::EditDraw>,
+    pub edit: Option<EditDraw>,
 }
 
 impl SplitMix {
@@ -137,7 +152,7 @@ impl Spec {
         let (background, shade, floor_visibility, fparams) = match (&self.world.floors, &geometry) {
             (Some(floors), Some(g)) => {
                 let fi = pick(&mut wrng, floors);
-                let scene = super::floor::Scene {
+                let scene = super::floor::FloorScene {
                     geometry: g,
                     env: &env,
                     camera: sv.camera,
@@ -273,6 +288,47 @@ pub(super) fn draw_material(
         }
     };
     Ok((mi, material, mparams))
+}
+
+/// Sample `k`'s generator for one of the extra streams.
+fn stream(seed: u64, k: u64, constant: u64) -> SplitMix {
+    let mut s = SplitMix::for_sample(seed, k);
+    SplitMix(SplitMix(s.next_u64() ^ constant).next_u64())
+}
+
+impl Spec {
+    /// Sample `k`'s camera effects and edit material, each from its own generator, and
+    /// their records added to `params` (nothing when the spec has neither key).
+    pub(super) fn draw_extras(
+        &self,
+        k: u64,
+        params: &mut Value,
+    ) -> Result<(Option<EffectDraws>, Option<EditDraw>)> {
+        let effects = self
+            .camera_effects
+            .as_ref()
+            .map(|fx| fx.draw(&mut stream(self.seed, k, CAMERA_EFFECTS_STREAM)));
+        let edit = match &self.edit {
+            None => None,
+            Some(items) => {
+                let mut rng = stream(self.seed, k, EDIT_STREAM);
+                let (item, material, record) = super::draw::draw_material(&mut rng, items)?;
+                Some(EditDraw {
+                    material,
+                    record: json!({ "material": record, "material_item": item }),
+                })
+            }
+        };
+        if let Some(o) = params.as_object_mut() {
+            if let Some(d) = &effects {
+                o.insert("camera_effects".into(), d.record());
+            }
+            if let Some(e) = &edit {
+                o.insert("edit".into(), e.record.clone());
+            }
+        }
+        Ok((effects, edit))
+    }
 }
 
 /// Adds `extra`'s keys to the object `into`.

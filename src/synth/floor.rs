@@ -1,5 +1,5 @@
 //! The floor the object stands on: the plane through the object's lowest point, normal to
-//! the world's up ([`super::world::up`]), textured ([`super::textures`]) and diffuse: its
+//! the world's up ([`up`]), textured ([`super::textures`]) and diffuse: its
 //! radiance is albedo x E / pi with E the irradiance the sample's map gives the plane,
 //! times the floor's visibility when shadows are on ([`super::shadow`]).
 //!
@@ -133,7 +133,7 @@ pub(super) fn floors(
 }
 
 /// What the floor changes in a sample.
-pub struct Drawn {
+pub struct FloorDraw {
     /// The background with the floor drawn into it (`None`: black, no floor).
     pub background: Option<Vec<[f32; 3]>>,
     /// The factor on the object's rendered pixels (visibility), where shadows are on.
@@ -145,7 +145,7 @@ pub struct Drawn {
 }
 
 /// Everything a sample's floor is drawn from.
-pub struct Scene<'a> {
+pub struct FloorScene<'a> {
     /// The object as drawn.
     pub geometry: &'a Geometry,
     /// The sample's map, camera frame.
@@ -165,13 +165,13 @@ impl FloorSource {
     /// for no floor, the background as it is.
     pub fn draw(
         &self,
-        scene: &Scene,
+        scene: &FloorScene,
         background: Option<Vec<[f32; 3]>>,
         rng: &mut SplitMix,
-    ) -> Drawn {
+    ) -> FloorDraw {
         let (texture, record) = match self {
             FloorSource::None => {
-                return Drawn {
+                return FloorDraw {
                     background,
                     shade: None,
                     floor_visibility: None,
@@ -189,14 +189,14 @@ impl FloorSource {
 }
 
 fn draw_floor(
-    scene: &Scene,
+    scene: &FloorScene,
     texture: &Texture,
     record: Value,
     background: Option<Vec<[f32; 3]>>,
-) -> Drawn {
+) -> FloorDraw {
     let (w, h) = scene.size;
     let g = scene.geometry;
-    let up = super::world::up(scene.elevation);
+    let up = up(scene.elevation);
     let (s, c) = scene.elevation.to_radians().sin_cos();
     // the floor's own axes: the world's x and z in the camera frame
     let (ex, ez) = ([1.0, 0.0, 0.0], [0.0, -s, c]);
@@ -302,10 +302,16 @@ fn draw_floor(
     if let Some(s) = &shadows {
         params["shadow_maps"] = json!(s.maps());
     }
-    Drawn {
+    FloorDraw {
         background: Some(bg),
         floor_visibility: shadows.is_some().then_some(floor_vis),
         shade,
         params,
     }
+}
+
+/// The world's up in the camera frame at `elevation` degrees: the floor's normal.
+pub fn up(elevation: f64) -> [f64; 3] {
+    let (s, c) = elevation.to_radians().sin_cos();
+    [0.0, c, s]
 }

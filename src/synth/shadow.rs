@@ -23,7 +23,7 @@ const MAP: usize = 96;
 
 /// One direction towards the light: unit, and its power (luminance x solid angle).
 #[derive(Clone, Copy, Debug)]
-pub struct Light {
+pub struct ShadowLight {
     /// Unit direction towards the light, camera frame.
     pub dir: V3,
     /// Luminance times solid angle of its cell.
@@ -36,7 +36,7 @@ pub struct Light {
 
 /// The directions of `env`'s cells: those above the plane with normal `up` that carry
 /// light, and every one below it (where the floor is seen instead).
-pub fn lights(env: &EnvMap, up: V3) -> Vec<Light> {
+pub fn lights(env: &EnvMap, up: V3) -> Vec<ShadowLight> {
     let (gr, gc) = GRID;
     let mut sums = vec![([0.0f64; 3], 0.0f64, 0.0f64); gr * gc];
     for r in 0..env.height {
@@ -62,7 +62,7 @@ pub fn lights(env: &EnvMap, up: V3) -> Vec<Light> {
         .filter_map(|(d, p, solid_angle)| {
             let dir = unit(d)?;
             let above = dot(dir, up) > 0.0;
-            (!above || p > 1e-5 * total).then_some(Light {
+            (!above || p > 1e-5 * total).then_some(ShadowLight {
                 dir,
                 power: p,
                 solid_angle,
@@ -203,13 +203,13 @@ impl ShadowMap {
 
 /// The shadow maps of a placed mesh along each light above the floor.
 pub struct Shadows {
-    lights: Vec<Light>,
+    lights: Vec<ShadowLight>,
     maps: Vec<Option<ShadowMap>>,
 }
 
 impl Shadows {
     /// The maps of `mesh` (camera space) for `lights`.
-    pub fn new(mesh: &Mesh, lights: Vec<Light>) -> Shadows {
+    pub fn new(mesh: &Mesh, lights: Vec<ShadowLight>) -> Shadows {
         use rayon::prelude::*;
         let maps = lights
             .par_iter()

@@ -209,7 +209,7 @@ impl Spec {
             .transpose()
             .map_err(err)?;
         let edit = (raw.edit.as_ref())
-            .map(|v| super::edit::materials(v, &base, &mut hasher, &err))
+            .map(|v| edit_materials(v, &base, &mut hasher, &err))
             .transpose()?;
 
         Ok(Spec {
@@ -236,4 +236,35 @@ impl Spec {
     pub fn chunks(&self) -> u64 {
         self.count / self.chunk_size
     }
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawEdit {
+    materials: Vec<Value>,
+}
+
+/// The spec's `edit` object: its material sources, loaded and hashed into the digest;
+/// errors name `edit.materials[i]`.
+fn edit_materials(
+    v: &Value,
+    base: &std::path::Path,
+    hasher: &mut Sha256,
+    err: &dyn Fn(String) -> Error,
+) -> Result<Vec<Weighted<MaterialItem>>> {
+    let raw: RawEdit = serde_path_to_error::deserialize(v.clone()).map_err(|e| {
+        let at = e.path().to_string();
+        let m = serde_message(e.inner());
+        err(if at == "." {
+            format!("edit: {m}")
+        } else {
+            format!("edit.{at}: {m}")
+        })
+    })?;
+    if raw.materials.is_empty() {
+        return Err(err(
+            "edit.materials: the list is empty; give at least one".into()
+        ));
+    }
+    super::sources::materials(&raw.materials, base, hasher, &|m| err(format!("edit.{m}")))
 }

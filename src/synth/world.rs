@@ -192,12 +192,6 @@ pub fn pitched(rotation: Rotation, elevation: f64) -> Rotation {
     }
 }
 
-/// The world's up in the camera frame at `elevation` degrees: the floor's normal.
-pub fn up(elevation: f64) -> [f64; 3] {
-    let (s, c) = elevation.to_radians().sin_cos();
-    [0.0, c, s]
-}
-
 /// `env` (world frame) resampled to the camera frame of a world pitched by `elevation`
 /// degrees: texel direction d (camera frame) takes the world's radiance along Rx(-e) d,
 /// bilinear.
@@ -263,6 +257,6 @@ mod tests {
         let at = |d| super::super::background::env_along(&t, d)[0];
         assert!(at([0.0, 0.0, 1.0]) > 0.99);
         assert!(at([0.0, 0.0, -1.0]) < 0.01);
-        assert_eq!(up(0.0), [0.0, 1.0, 0.0]);
+        assert_eq!(super::super::floor::up(0.0), [0.0, 1.0, 0.0]);
     }
 }
