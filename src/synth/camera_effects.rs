@@ -201,7 +201,7 @@ impl EffectDraws {
         let mean = first
             .pixels
             .iter()
-            .map(|p| 0.2126 * p[0] as f64 + 0.7152 * p[1] as f64 + 0.0722 * p[2] as f64)
+            .map(|p| crate::envgen::colour::luminance(p.map(f64::from)))
             .sum::<f64>()
             / first.pixels.len().max(1) as f64;
         // a black frame keeps its level; the gain stays within 1e-4..1e4
@@ -414,7 +414,7 @@ mod tests {
         let lum: f64 = im
             .pixels
             .iter()
-            .map(|p| 0.2126 * p[0] as f64 + 0.7152 * p[1] as f64 + 0.0722 * p[2] as f64)
+            .map(|p| crate::envgen::colour::luminance(p.map(f64::from)))
             .sum();
         MIDDLE_GREY / (lum / im.pixels.len() as f64)
     }
