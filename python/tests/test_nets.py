@@ -155,6 +155,21 @@ def test_resident_mode_trains_resumes_and_follows(dataset, tmp_path):
     assert batch["ctrl"].shape == (6, 108)
     with pytest.raises(ValueError, match="no chunk-"):
         data.Resident(tmp_path)
+
+    # two folders in equal shares: each half of a batch comes from its own folder
+    mixed = data.Mixed([grow, dataset / "test"])
+    assert len(mixed) == 64
+    batch = mixed.batch(8, torch.Generator().manual_seed(1))
+    assert batch["image"].shape == (8, 16, 16, 3)
+    images = [held.tensors["image"], mixed.parts[1].tensors["image"]]
+    for half, ims in ((batch["image"][:4], images[0]), (batch["image"][4:], images[1])):
+        assert all(any(torch.equal(im, x) for x in ims) for im in half)
+    with pytest.raises(ValueError, match="batch_size 7 does not split into equal shares of 2"):
+        mixed.batch(7, torch.Generator())
+    mix = write_config(dataset, "mixed", steps=4, resident=True, data=["train", "test"])
+    assert len(train.train(train.load_config(mix), dataset / "runs" / "mixed", quiet=True)["history"]) == 4
+    with pytest.raises(ValueError, match="a list of folders needs resident = True"):
+        train.load_config(write_config(dataset, "bad_mix", data=["train", "test"]))
     with pytest.raises(ValueError, match="follow = 5 needs resident = True"):
         train.load_config(write_config(dataset, "bad_follow", follow=5))
     with pytest.raises(ValueError, match="amp = 'fp8'"):

@@ -52,7 +52,10 @@ def chunks(folder, allow_none: bool = False) -> list[dict]:
 
 
 def spec_digest(folder) -> str | None:
-    """The SHA-256 of the spec that wrote a synth folder (its manifest's), if it has one."""
+    """The SHA-256 of the spec that wrote a synth folder (its manifest's), if it has one;
+    for a list of folders, their digests joined by commas."""
+    if isinstance(folder, list):
+        return ",".join(spec_digest(f) or "" for f in folder)
     try:
         return json.loads((pathlib.Path(folder) / "manifest.json").read_text()).get("spec_sha256")
     except (OSError, ValueError):
@@ -240,3 +243,26 @@ class Resident:
         that the draws do not depend on the device)."""
         idx = torch.randint(self.count, (size,), generator=generator).to(self.device)
         return {k: v[idx] for k, v in self.store.items()}
+
+
+class Mixed:
+    """Several synth folders, each a Resident on `device`, drawn in equal shares: a batch of
+    `size` takes size / n samples from each of the n folders (their order in the batch),
+    whatever their sizes, so that a small folder counts as much as a big one."""
+
+    def __init__(self, folders, device="cpu"):
+        self.parts = [Resident(f, device) for f in folders]
+
+    def __len__(self) -> int:
+        return sum(len(p) for p in self.parts)
+
+    def refresh(self) -> int:
+        return sum(p.refresh() for p in self.parts)
+
+    def batch(self, size: int, generator: torch.Generator) -> dict:
+        n = len(self.parts)
+        if size % n:
+            raise ValueError(f"batch_size {size} does not split into equal shares of {n} folders")
+        shares = [p.batch(size // n, generator) for p in self.parts]
+        keys = [k for k in shares[0] if all(k in s for s in shares)]  # an edit only some folders have
+        return {k: torch.cat([s[k] for s in shares]) for k in keys}

@@ -48,11 +48,11 @@ import torch.distributed as dist
 import torch.nn.functional as F
 
 import matedit.torch
-from matedit.nets.data import ChunkStream, Resident, spec_digest
+from matedit.nets.data import ChunkStream, Mixed, Resident, spec_digest
 from matedit.nets.model import Nets, NetsConfig, check_sizes, load, normalise, prepare, probe_scene, save, slog, spheres
 
 DEFAULTS = {
-    "data": "ds",  # the training folder of `matedit synth`
+    "data": "ds",  # the training folder of `matedit synth`; resident: a list mixes folders in equal shares
     "init": "",  # weights.safetensors to start from (empty: a random start)
     "width": 16,  # model sizes (model.NetsConfig)
     "levels": 3,
@@ -104,6 +104,8 @@ def load_config(path) -> dict:
         if k not in DEFAULTS:
             raise ValueError(f"{path}: unknown setting {k!r}; known: {', '.join(DEFAULTS)}")
         want = type(DEFAULTS[k])
+        if k == "data" and isinstance(v, list) and v and all(isinstance(f, str) for f in v):
+            want = list
         if want is float and isinstance(v, int) and not isinstance(v, bool):
             v = float(v)
         if type(v) is not want:
@@ -119,7 +121,11 @@ def load_config(path) -> dict:
         raise ValueError(f"{path}: follow = {cfg['follow']} needs resident = True")
     if not (cfg["lr"] > 0 and math.isfinite(cfg["lr"])):
         raise ValueError(f"{path}: lr = {cfg['lr']}: expected a positive number")
-    cfg["data"] = str((path.parent / cfg["data"]).resolve())
+    if isinstance(cfg["data"], list) and not cfg["resident"]:
+        raise ValueError(f"{path}: data = {cfg['data']!r}: a list of folders needs resident = True")
+    folders = [cfg["data"]] if isinstance(cfg["data"], str) else cfg["data"]
+    folders = [str((path.parent / f).resolve()) for f in folders]
+    cfg["data"] = folders[0] if isinstance(cfg["data"], str) else folders
     if cfg["init"]:
         cfg["init"] = str((path.parent / cfg["init"]).resolve())
     return cfg
@@ -297,7 +303,7 @@ def train(cfg: dict, out, resume: bool = False, stop_at: int | None = None, quie
     if cfg["resident"]:
         if world > 1:
             raise ValueError("resident = True runs in one process (no DDP)")
-        data = Resident(cfg["data"], dev)
+        data = Resident(cfg["data"], dev) if isinstance(cfg["data"], str) else Mixed(cfg["data"], dev)
         draws = torch.Generator().manual_seed(cfg["seed"])
         if resume and "draws" in ck:
             draws.set_state(ck["draws"])
@@ -371,7 +377,7 @@ def train(cfg: dict, out, resume: bool = False, stop_at: int | None = None, quie
 
     while step < end and not (stop_after and seconds - seconds0 >= stop_after):
         batch = next_batch()
-        check_sizes(nets.cfg, batch["image"], batch["env"], cfg["data"])
+        check_sizes(nets.cfg, batch["image"], batch["env"], str(cfg["data"]))
         nets.cfg.image_size = batch["image"].shape[1]
         for g in opt.param_groups:
             g["lr"] = lr_at(cfg, step)

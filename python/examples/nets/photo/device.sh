@@ -8,10 +8,11 @@
 #   .dev/matedit.so.xz     the Python package's extension (maturin build --release), stripped
 #   .dev/data.tar.xz       photo/{train.json, meshes/train, envmaps}: the training spec's inputs
 #   .gl/*.deb              the Vulkan loader (the device's README)
+# (.dev/it.xz is optional: without it the GPU tests are skipped.)
 # Writes to $OUT: gpu_tests.log, runs.tar.xz (every run's log, run.json, losses.png) and
 # each run's weights.
 #
-#   bash python/examples/nets/photo/device.sh SECONDS RUN...     RUN: a config of this folder
+#   [SHARDS=8 PAPER_SHARDS=4] bash python/examples/nets/photo/device.sh SECONDS RUN...     RUN: a config of this folder
 set -u
 seconds=$1
 shift
@@ -26,28 +27,39 @@ if ! ldconfig -p | grep -q libvulkan.so.1; then
 fi
 icd=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
 [ -f $icd ] && export VK_DRIVER_FILES=$icd __EGL_VENDOR_LIBRARY_FILENAMES=/usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json
-xz -dc .dev/it.xz >/tmp/dev/it && chmod +x /tmp/dev/it
+[ -f .dev/it.xz ] && xz -dc .dev/it.xz >/tmp/dev/it && chmod +x /tmp/dev/it
 cp -r python/matedit/. /tmp/site/matedit/
 xz -dc .dev/matedit.so.xz >/tmp/site/matedit/_matedit.abi3.so
 tar -C /tmp/dev -xJf .dev/data.tar.xz
+cp python/examples/nets/photo/paper128.json /tmp/dev/photo/
 export PYTHONPATH=/tmp/site PYTHONUNBUFFERED=1 PYTORCH_CUDA_ALLOC_CONF=expandable_segments:True
 nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader
 stamp "unpacked"
 
-# the synthesis: 12 shards of one process each, one thread each, writing one folder
-shards=${SHARDS:-12}
-for i in $(seq 0 $((shards - 1))); do
-    python3 -c "import matedit; matedit.synth('/tmp/dev/photo/train.json', '/tmp/ds', shard=($i, $shards), threads=1)" \
-        >/tmp/runs/synth-$i.log 2>&1 &
-done
+# the synthesis, one thread a process: SHARDS processes writing the photo-like folder and
+# PAPER_SHARDS the paper's kind (paper128.json), for the runs whose data lists both
+synth() {  # SPEC FOLDER SHARDS
+    for i in $(seq 0 $(($3 - 1))); do
+        python3 -c "import matedit; matedit.synth('/tmp/dev/photo/$1', '$2', shard=($i, $3), threads=1)" \
+            >/tmp/runs/synth-$(basename $2)-$i.log 2>&1 &
+    done
+}
+synth train.json /tmp/ds ${SHARDS:-12}
+[ "${PAPER_SHARDS:-0}" -gt 0 ] && synth paper128.json /tmp/ds_paper $PAPER_SHARDS
 
 # the GPU tests meanwhile (the names as .ci/run reruns them)
-MATEDIT_REQUIRE_GPU=1 timeout ${TEST_SECONDS:-150} /tmp/dev/it gpu every_backend_gives_the_references_corrections \
-    --test-threads 4 >"$out/gpu_tests.log" 2>&1
-stamp "GPU tests: exit $? ($(grep -c '\.\.\. ok' "$out/gpu_tests.log") ok, $(grep -c 'FAILED\|panicked' "$out/gpu_tests.log") failed)"
-until ls /tmp/ds/chunk-*.json >/dev/null 2>&1; do sleep 1; done
-stamp "$(ls /tmp/ds/chunk-*.json | wc -l) chunks so far"
-mkdir -p python/examples/nets/photo/data && ln -sfn /tmp/ds python/examples/nets/photo/data/train
+if [ -x /tmp/dev/it ]; then
+    MATEDIT_REQUIRE_GPU=1 timeout ${TEST_SECONDS:-150} /tmp/dev/it gpu every_backend_gives_the_references_corrections \
+        --test-threads 4 >"$out/gpu_tests.log" 2>&1
+    stamp "GPU tests: exit $? ($(grep -c '\.\.\. ok' "$out/gpu_tests.log") ok, $(grep -c 'FAILED\|panicked' "$out/gpu_tests.log") failed)"
+fi
+folders=/tmp/ds
+[ "${PAPER_SHARDS:-0}" -gt 0 ] && folders="/tmp/ds /tmp/ds_paper"
+for f in $folders; do until ls $f/chunk-*.json >/dev/null 2>&1; do sleep 1; done; done
+stamp "$(cat /tmp/ds*/chunk-*.json | grep -c '"file"') chunks so far"
+mkdir -p python/examples/nets/photo/data
+ln -sfn /tmp/ds python/examples/nets/photo/data/train
+ln -sfn /tmp/ds_paper python/examples/nets/photo/data/paper
 
 # the runs: the first alone for a minute (its steps per second undisturbed), then the rest
 pids=()
@@ -59,7 +71,7 @@ for run in "$@"; do
     if [ $first = 1 ]; then sleep 60; first=0; fi
 done
 for p in "${pids[@]}"; do wait "$p"; done
-stamp "training done; $(ls /tmp/ds/chunk-*.json | wc -l) chunks synthesised"
+stamp "training done; chunks synthesised: $(for f in $folders; do echo "$f $(ls $f/chunk-*.json | wc -l)"; done)"
 pkill -f matedit.synth
 for run in "$@"; do
     tail -3 "/tmp/runs/$run.log"
