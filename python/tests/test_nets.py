@@ -14,6 +14,7 @@ import socket
 import subprocess
 import sys
 import tarfile
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -99,6 +100,15 @@ def test_loss_falls_and_run_files(dataset):
         assert all(math.isfinite(v) for v in metrics[who].values()), metrics[who]
         assert 0 <= metrics[who]["mask_iou"] <= 1
         assert 0 <= metrics[who]["normals_under_11.25_pct"] <= metrics[who]["normals_under_30_pct"] <= 100
+
+    # at the nets' size: the same numbers where it is the data's, finite ones where the
+    # nets see the images at half the data's size (and their outputs come back to it)
+    plain = evaluate.evaluate(nets, dataset / "test", limit=8)["nets"]
+    same = evaluate.evaluate(nets, dataset / "test", limit=8, at_nets_size=True)["nets"]
+    assert same == pytest.approx(plain, rel=1e-6)
+    nets.cfg = replace(nets.cfg, image_size=8)
+    half = evaluate.evaluate(nets, dataset / "test", limit=8, at_nets_size=True)["nets"]
+    assert all(math.isfinite(v) for v in half.values()) and half != same, half
 
 
 def test_resume_reaches_the_uninterrupted_weights(dataset):

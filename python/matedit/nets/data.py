@@ -53,9 +53,10 @@ def chunks(folder, allow_none: bool = False) -> list[dict]:
 
 def spec_digest(folder) -> str | None:
     """The SHA-256 of the spec that wrote a synth folder (its manifest's), if it has one;
-    for a list of folders, their digests joined by commas."""
+    for a list of folders, their digests joined by commas (None where none has one)."""
     if isinstance(folder, list):
-        return ",".join(spec_digest(f) or "" for f in folder)
+        digests = [spec_digest(f) for f in folder]
+        return ",".join(d or "" for d in digests) if any(digests) else None
     try:
         return json.loads((pathlib.Path(folder) / "manifest.json").read_text()).get("spec_sha256")
     except (OSError, ValueError):

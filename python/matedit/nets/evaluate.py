@@ -22,6 +22,10 @@ metric is over the object's pixels (the true mask), averaged over samples:
   there; baseline: the three baselines rendered the same way. unedited_psnr_db is I / s
   itself against O (the same in both columns): O' beats leaving the photo alone by
   edit_psnr_db - unedited_psnr_db.
+With `--at-nets-size` the nets see each image as `matedit edit` shows them a photo: resized
+to the size they were trained at (their image_size; area averaging down, bilinear up), their
+normals and mask logits brought back to the data's size bilinearly; the metrics stay at the
+data's size. So nets trained at different sizes are compared on the same images.
 It prints a table and writes the numbers as JSON.
 """
 
@@ -35,6 +39,7 @@ import sys
 
 import numpy as np
 import torch
+import torch.nn.functional as F
 
 import matedit.torch
 from matedit.nets.data import collate, samples, spec_digest
@@ -122,9 +127,11 @@ def iou(a: torch.Tensor, b: torch.Tensor) -> float:
     return float((a & b).sum() / union) if union > 0 else 1.0
 
 
-def evaluate(nets: Nets, folder, batch_size: int = 8, limit: int | None = None, device: str = "cpu") -> dict:
+def evaluate(nets: Nets, folder, batch_size: int = 8, limit: int | None = None, device: str = "cpu",
+             at_nets_size: bool = False) -> dict:
     """The metrics of `nets` and of the baselines on the samples of `folder` (see the module's
-    docstring): {"samples", "nets": {...}, "baselines": {...}}."""
+    docstring): {"samples", "nets": {...}, "baselines": {...}}. at_nets_size: the nets see
+    each image resized to their image_size."""
     nets.eval()
     probe = probe_scene(32, nets.cfg.env_height, nets.cfg.env_width)
     m_mean, l_mean = mean_material(nets), mean_light(nets)
@@ -135,7 +142,8 @@ def evaluate(nets: Nets, folder, batch_size: int = 8, limit: int | None = None, 
     while batch := list(itertools.islice(stream, batch_size)):
         count += len(batch)
         with torch.no_grad():
-            _eval_batch(nets, collate(batch), probe, m_mean, l_mean, device, acc, angles, str(folder))
+            size = nets.cfg.image_size if at_nets_size else None
+            _eval_batch(nets, collate(batch), probe, m_mean, l_mean, device, acc, angles, str(folder), size)
     if count == 0:
         raise ValueError(f"{folder}: no samples")
     res = {"samples": count}
@@ -151,14 +159,35 @@ def evaluate(nets: Nets, folder, batch_size: int = 8, limit: int | None = None, 
     return res
 
 
-def _eval_batch(nets, b, probe, m_mean, l_mean, device, acc, angles, where: str) -> None:
+def resize(x: torch.Tensor, size: tuple[int, int]) -> torch.Tensor:
+    """(B, C, H, W) to `size`: area averaging where it shrinks, bilinear where it grows."""
+    if tuple(x.shape[2:]) == size:
+        return x
+    if size[0] <= x.shape[2] and size[1] <= x.shape[3]:
+        return F.interpolate(x, size=size, mode="area")
+    return F.interpolate(x, size=size, mode="bilinear", align_corners=False)
+
+
+def _eval_batch(nets, b, probe, m_mean, l_mean, device, acc, angles, where: str, size: int | None = None) -> None:
     image, mask = b["image"], b["mask"]
-    check_sizes(nets.cfg, image, b["env"], where)
+    hw = tuple(image.shape[1:3])
     target, s = normalise(image, mask)
     env_t = b["env"] / s[:, None, None, None]
     x = prepare(image, mask)
-    out = nets(x, mask)
-    pred_mask = nets.normals(x)[1] > 0
+    net_hw = hw if size is None else (size, size * hw[1] // hw[0])
+    if net_hw != hw:  # the nets at their own size (mask and image resized), brought back
+        m_in = resize(mask[:, None].float(), net_hw)[:, 0] > 0.5
+        small = resize_image(image, net_hw)
+        check_sizes(nets.cfg, small, b["env"], where)
+        x = prepare(small, m_in)
+        out = nets(x, m_in)
+        n = resize(out["normals"].permute(0, 3, 1, 2), hw).permute(0, 2, 3, 1)
+        out["normals"] = F.normalize(n, dim=-1, eps=1e-6)
+        pred_mask = resize(nets.normals(x)[1][:, None], hw)[:, 0] > 0
+    else:
+        check_sizes(nets.cfg, image, b["env"], where)
+        out = nets(x, mask)
+        pred_mask = nets.normals(x)[1] > 0
     n_bal = torch.from_numpy(np.stack([balloon(m) for m in mask.numpy()]))
     nb = image.shape[0]
     guesses = {
@@ -192,6 +221,11 @@ def _eval_batch(nets, b, probe, m_mean, l_mean, device, acc, angles, where: str)
             )
 
 
+def resize_image(image: torch.Tensor, hw: tuple[int, int]) -> torch.Tensor:
+    """A linear image (B, H, W, 3) resized to hw (as `resize`)."""
+    return resize(image.permute(0, 3, 1, 2), hw).permute(0, 2, 3, 1)
+
+
 def weights_data_spec(path) -> str | None:
     """The spec digest of the training data recorded in a weights file, if any."""
     from safetensors import safe_open
@@ -218,17 +252,18 @@ def main(argv=None) -> int:
     ap.add_argument("--batch-size", type=int, default=8)
     ap.add_argument("--limit", type=int, help="evaluate the first N samples only")
     ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--at-nets-size", action="store_true", help="the nets see each image resized to their training size")
     args = ap.parse_args(argv)
     torch.set_num_threads(args.threads)
     try:
         trained_on = weights_data_spec(args.weights)
         if trained_on is not None and trained_on == spec_digest(args.data):
             raise ValueError(f"{args.data}: the data these weights were trained on; evaluate on a held-out split")
-        res = evaluate(load(args.weights), args.data, args.batch_size, args.limit)
+        res = evaluate(load(args.weights), args.data, args.batch_size, args.limit, at_nets_size=args.at_nets_size)
     except ValueError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    res["weights"], res["data"] = args.weights, args.data
+    res["weights"], res["data"], res["at_nets_size"] = args.weights, args.data, args.at_nets_size
     path = args.json or f"{args.weights}.eval.json"
     with open(path, "w") as f:
         json.dump(res, f, indent=1)
