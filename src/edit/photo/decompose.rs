@@ -88,7 +88,7 @@ pub fn decompose<'a>(
     let target = raster::crop(photo, crop);
     let object_pixels = crop_mask.iter().filter(|&&m| m).count();
     let inputs = Inputs::new(normals.clone(), target, Some(crop_mask.clone()))?;
-    let work = inputs.downsampled(work_factor(crop.size, object_pixels, options));
+    let work = inputs.downsampled(work_factor(crop.size, object_pixels, n, options));
     drop(inputs);
     let mut fit_options = Options::new(p.material.clone(), Light::FitFrom(p.env.clone()));
     fit_options.steps = options.steps;
@@ -163,15 +163,17 @@ pub fn decompose<'a>(
 /// The factor the refinement box-filters the crop (`size` pixels a side, `object` of them
 /// on the object) by: the smallest whole one that leaves at most
 /// [`PhotoOptions::work_size`] pixels a side and [`PhotoOptions::work_pixels`] on the
-/// object (a pixel counts when its whole block is on the object, at most `object` / f^2).
-fn work_factor(size: usize, object: usize, options: &PhotoOptions) -> usize {
+/// object (a pixel counts when its whole block is on the object, at most `object` / f^2),
+/// but never fewer than `n` (the nets' size) a side for the pixel budget: a crop the nets
+/// see at full resolution is refined at it.
+fn work_factor(size: usize, object: usize, n: usize, options: &PhotoOptions) -> usize {
     let side = match options.work_size {
         0 => 1,
-        n => size.div_ceil(n),
+        w => size.div_ceil(w),
     };
     let pixels = match options.work_pixels {
         0 => 1,
-        n => (object as f64 / n as f64).sqrt().ceil() as usize,
+        b => ((object as f64 / b as f64).sqrt().ceil() as usize).min(size / n.max(1)),
     };
     side.max(pixels).max(1)
 }

@@ -63,9 +63,9 @@ pub struct PhotoOptions {
     /// The refinement runs on the crop box-filtered by a whole factor to at most this many
     /// pixels a side (0: no bound) ...
     pub work_size: usize,
-    /// ... and at most this many pixels on the object (0: no bound): it fits a light and
-    /// a material, which a photo's full resolution does not tell better, and each step
-    /// costs in proportion to these pixels.
+    /// ... and at most this many pixels on the object (0: no bound), down to the nets'
+    /// size a side: it fits a light and a material, which a photo's full resolution does
+    /// not tell better, and each step costs in proportion to these pixels.
     pub work_pixels: usize,
     /// The nets' input size (square; a multiple of 2^(levels - 1)); 0 (the default): the
     /// size they were trained at ([`Nets::image_size`](crate::nets::Nets::image_size)).
