@@ -7,6 +7,8 @@
 
 use std::ops::Range;
 
+use rayon::prelude::*;
+
 use crate::scene::Image;
 
 /// What a bilinear lookup does past a raster's left and right edges (rows always clamp).
@@ -65,32 +67,35 @@ pub fn resize(image: &Image, width: usize, height: usize) -> Image {
         image.width as f64 / width as f64,
         image.height as f64 / height as f64,
     );
-    for y in 0..height {
-        let (y0, y1) = (y as f64 * sy, (y + 1) as f64 * sy);
-        let rows =
-            (y0 - 0.5).ceil().max(0.0) as usize..((y1 - 0.5).ceil() as usize).min(image.height);
-        for x in 0..width {
-            let (x0, x1) = (x as f64 * sx, (x + 1) as f64 * sx);
-            let cols =
-                (x0 - 0.5).ceil().max(0.0) as usize..((x1 - 0.5).ceil() as usize).min(image.width);
-            let (mut sum, mut n) = ([0.0f64; 3], 0usize);
-            for yy in rows.clone() {
-                for xx in cols.clone() {
-                    for k in 0..3 {
-                        sum[k] += f64::from(image.pixels[yy * image.width + xx][k]);
+    out.pixels
+        .par_chunks_mut(width.max(1))
+        .enumerate()
+        .for_each(|(y, row)| {
+            let (y0, y1) = (y as f64 * sy, (y + 1) as f64 * sy);
+            let rows =
+                (y0 - 0.5).ceil().max(0.0) as usize..((y1 - 0.5).ceil() as usize).min(image.height);
+            for (x, o) in row.iter_mut().enumerate() {
+                let (x0, x1) = (x as f64 * sx, (x + 1) as f64 * sx);
+                let cols = (x0 - 0.5).ceil().max(0.0) as usize
+                    ..((x1 - 0.5).ceil() as usize).min(image.width);
+                let (mut sum, mut n) = ([0.0f64; 3], 0usize);
+                for yy in rows.clone() {
+                    for xx in cols.clone() {
+                        for k in 0..3 {
+                            sum[k] += f64::from(image.pixels[yy * image.width + xx][k]);
+                        }
+                        n += 1;
                     }
-                    n += 1;
                 }
+                *o = if n > 0 {
+                    sum.map(|v| (v / n as f64) as f32)
+                } else {
+                    let yy = (((y as f64 + 0.5) * sy) as usize).min(image.height - 1);
+                    let xx = (((x as f64 + 0.5) * sx) as usize).min(image.width - 1);
+                    image.pixels[yy * image.width + xx]
+                };
             }
-            out.pixels[y * width + x] = if n > 0 {
-                sum.map(|v| (v / n as f64) as f32)
-            } else {
-                let yy = (((y as f64 + 0.5) * sy) as usize).min(image.height - 1);
-                let xx = (((x as f64 + 0.5) * sx) as usize).min(image.width - 1);
-                image.pixels[yy * image.width + xx]
-            };
-        }
-    }
+        });
     out
 }
 
@@ -125,25 +130,25 @@ impl Iterator for Block {
 /// row: output pixel (x, y) is `block` of the input pixels in columns x fx .. (x + 1) fx and
 /// rows y fy .. (y + 1) fy, cut at the raster's edges. The caller sums (weighted, in f32 or
 /// f64) as its result needs.
-pub fn reduce<T>(
+pub fn reduce<T: Send>(
     (w, h): (usize, usize),
     (fx, fy): (usize, usize),
     (out_w, out_h): (usize, usize),
-    mut block: impl FnMut(Block) -> T,
+    block: impl Fn(Block) -> T + Sync,
 ) -> Vec<T> {
-    let mut out = Vec::with_capacity(out_w * out_h);
-    for y in 0..out_h {
-        for x in 0..out_w {
+    (0..out_w * out_h)
+        .into_par_iter()
+        .map(|i| {
+            let (x, y) = (i % out_w, i / out_w);
             let cols = x * fx..((x + 1) * fx).min(w);
-            out.push(block(Block {
+            block(Block {
                 width: w,
                 rows: y * fy..((y + 1) * fy).min(h),
                 col: cols.start,
                 cols,
-            }));
-        }
-    }
-    out
+            })
+        })
+        .collect()
 }
 
 /// A square of an image: columns x0 .. x0 + size, rows y0 .. y0 + size; it may reach
@@ -173,13 +178,25 @@ impl Crop {
 
 /// The square `c` of `image`, black past the image's edges.
 pub fn crop(image: &Image, c: Crop) -> Image {
-    let mut out = Image::zeros(c.size, c.size);
-    for (i, p) in out.pixels.iter_mut().enumerate() {
-        if let Some((x, y)) = c.pixel(i, image.width, image.height) {
-            *p = image.pixels[y * image.width + x];
-        }
+    Image {
+        width: c.size,
+        height: c.size,
+        pixels: crop_values(&image.pixels, image.width, image.height, c, [0.0; 3]),
     }
-    out
+}
+
+/// The values of a `w` x `h` raster under the square `c`, `outside` past its edges.
+pub fn crop_values<T: Copy + Send + Sync>(
+    values: &[T],
+    w: usize,
+    h: usize,
+    c: Crop,
+    outside: T,
+) -> Vec<T> {
+    (0..c.size * c.size)
+        .into_par_iter()
+        .map(|i| c.pixel(i, w, h).map_or(outside, |(x, y)| values[y * w + x]))
+        .collect()
 }
 
 /// `square` (the pixels of `c`) put back into a black `width` x `height` image: the
@@ -197,22 +214,25 @@ pub fn uncrop(square: &Image, c: Crop, width: usize, height: usize) -> Image {
 /// A `w` x `h` mask as 0/1, averaged over each pixel's 3 x 3 neighbourhood (inside the
 /// raster).
 pub fn blur3(mask: &[bool], w: usize, h: usize) -> Vec<f32> {
-    (0..w * h)
-        .map(|i| {
-            let (x, y) = ((i % w) as i64, (i / w) as i64);
-            let (mut s, mut c) = (0.0f32, 0.0f32);
-            for dy in -1..=1 {
-                for dx in -1..=1 {
-                    let (xx, yy) = (x + dx, y + dy);
-                    if (0..w as i64).contains(&xx) && (0..h as i64).contains(&yy) {
-                        s += f32::from(u8::from(mask[yy as usize * w + xx as usize]));
-                        c += 1.0;
-                    }
-                }
+    // per row, the count of set pixels in each column's 3 rows and the rows counted;
+    // counts are small integers, so the sums are exact and the order does not matter
+    let mut out = vec![0.0f32; w * h];
+    out.par_chunks_mut(w.max(1))
+        .enumerate()
+        .for_each(|(y, row)| {
+            let rows = y.saturating_sub(1)..(y + 2).min(h);
+            let n_rows = rows.len() as f32;
+            let column: Vec<u8> = (0..w)
+                .map(|x| rows.clone().map(|yy| u8::from(mask[yy * w + x])).sum())
+                .collect();
+            for (x, o) in row.iter_mut().enumerate() {
+                let cols = x.saturating_sub(1)..(x + 2).min(w);
+                let n = n_rows * cols.len() as f32;
+                let s: u8 = column[cols].iter().sum();
+                *o = f32::from(s) / n;
             }
-            s / c
-        })
-        .collect()
+        });
+    out
 }
 
 /// Separable Gaussian blur of sigma `s` pixels of a `w` x `h` raster, edges clamped.

@@ -276,26 +276,33 @@ fn encode_outputs(
     material: &Material,
 ) -> Result<Vec<(String, Vec<u8>)>, Failure> {
     let preview = Preview::default();
-    let edit_file = match kind {
-        Format::Jpeg => ("edit.jpg", encode_jpeg(edit)?),
-        Format::Png => ("edit.png", io::png::encode_preview(edit, &preview)?),
-        _ => (
-            "edit.exr",
-            io::exr::encode_rgb(edit.width, edit.height, &edit.pixels)?,
-        ),
-    };
     let crop_mask: Vec<bool> = d.normals.normals.iter().map(|n| n != &[0.0; 3]).collect();
-    let sky = matedit::builtin_sky::procedural_env(32, 64, Convention::Equirect);
-    let sphere_normals = NormalMap::sphere(128);
-    let renderer = Renderer::new(Device::Cpu)?;
-    let sphere = renderer
-        .render(&matedit::Batch::single(matedit::Scene {
-            normals: sphere_normals,
-            env: sky,
-            material: d.material.clone(),
-            camera: matedit::Camera::Orthographic,
-        })?)?
-        .remove(0);
+    // the edit's encoding runs on one thread: the sphere renders beside it
+    let (edit_file, sphere) = rayon::join(
+        || -> Result<_, Failure> {
+            Ok(match kind {
+                Format::Jpeg => ("edit.jpg", encode_jpeg(edit)?),
+                Format::Png => ("edit.png", io::png::encode_preview(edit, &preview)?),
+                _ => (
+                    "edit.exr",
+                    io::exr::encode_rgb(edit.width, edit.height, &edit.pixels)?,
+                ),
+            })
+        },
+        || -> Result<_, Failure> {
+            let sky = matedit::builtin_sky::procedural_env(32, 64, Convention::Equirect);
+            let renderer = Renderer::new(Device::Cpu)?;
+            Ok(renderer
+                .render(&matedit::Batch::single(matedit::Scene {
+                    normals: NormalMap::sphere(128),
+                    env: sky,
+                    material: d.material.clone(),
+                    camera: matedit::Camera::Orthographic,
+                })?)?
+                .remove(0))
+        },
+    );
+    let (edit_file, sphere) = (edit_file?, sphere?);
     let compare = compare_strip(photo, edit, &d.normals, &crop_mask, &sphere, &preview);
     let description = format!(
         "the material of matedit edit {} ({})",
@@ -330,11 +337,7 @@ fn encode_outputs(
 
 fn encode_jpeg(image: &Image) -> Result<Vec<u8>, Failure> {
     let preview = Preview::default();
-    let rgb: Vec<u8> = image
-        .pixels
-        .iter()
-        .flat_map(|p| p.map(|v| io::png::display_value(v, &preview)))
-        .collect();
+    let rgb = io::png::display_bytes(image, &preview);
     let mut out = Vec::new();
     jpeg_encoder::Encoder::new(&mut out, 92)
         .encode(

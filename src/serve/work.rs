@@ -205,7 +205,7 @@ pub fn analyse(
         .iter()
         .map(|n| f32::from(u8::from(n != &[0.0; 3])))
         .collect();
-    small.set_render_normals(renderer, small.normals.clone(), coverage)?;
+    small.set_render_normals(renderer, small.normals.clone(), coverage, true)?;
     let crop_mask: Vec<bool> = d.normals.normals.iter().map(|n| n != &[0.0; 3]).collect();
     let files = vec![
         ("photo.png", "image/png", photo_png(&photo)?),

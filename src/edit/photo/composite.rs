@@ -25,8 +25,10 @@ use crate::error::Result;
 use crate::raster::{self, Columns};
 use crate::{Accuracy, Batch, Camera, EnvMap, Image, Material, NormalMap, Renderer, Scene};
 
-/// The most pixels a side the object is rendered at for an edit.
-pub const RENDER_SIZE: usize = 192;
+/// The most pixels a side the object is rendered at for an edit: the photo's own detail
+/// gives the rest. On the photo set's edits 128 gave the gains of 192 (docs/edit.md,
+/// "Speed") at less than half the cost of the two renders.
+pub const RENDER_SIZE: usize = 128;
 /// The largest ratio of the photo to the refined render an edit carries over: brighter
 /// spots than that (a highlight the model missed) belong to the old material.
 pub const MAX_RATIO: f32 = 4.0;
@@ -45,7 +47,8 @@ const LIGHT_DETAIL: usize = 4;
 impl Decomposition {
     /// `photo` (the photo decomposed, or one scaled alike with the decomposition) with the
     /// object made of `material`: rendered under `light` (`None`: the refined light) with
-    /// `accuracy` ([`Accuracy::Exact`], or a preview through the levels of detail), with
+    /// `accuracy` ([`Accuracy::Exact`], sharp lobes under the continuous light; or a
+    /// preview through the levels of detail, under the layer's point lights), with
     /// the photo's detail carried over as `self.detail` says, and composited over the
     /// photo with the soft mask.
     pub fn edit(
@@ -92,24 +95,32 @@ impl Decomposition {
         accuracy: Accuracy,
     ) -> Result<Image> {
         let env = light.unwrap_or(&self.env);
+        // a preview (through the levels of detail) under the layer's point lights, as
+        // its reference ([`Decomposition::set_render_normals`])
+        let continuous = accuracy == Accuracy::Exact;
         render(
             renderer,
             &self.render_normals,
             env,
             material,
             accuracy,
-            true,
+            continuous,
         )
     }
 
     /// Sets the normals edits render (over the crop, any size; zero off the object) and the
     /// fraction of each of their pixels on the object, and renders the refined
-    /// decomposition on them (the reference the photo's detail is measured against).
+    /// decomposition on them (the reference the photo's detail is measured against). With
+    /// `preview`, for a decomposition that only previews (edits with an approximate
+    /// [`Accuracy`]), the reference renders as previews do, under the layer's point
+    /// lights, without the continuous light's cost (most of a preview's time:
+    /// docs/edit.md, "Speed").
     pub fn set_render_normals(
         &mut self,
         renderer: &Renderer,
         normals: NormalMap,
         coverage: Vec<f32>,
+        preview: bool,
     ) -> Result<()> {
         self.reference = render(
             renderer,
@@ -117,7 +128,7 @@ impl Decomposition {
             &self.env,
             &self.material,
             Accuracy::Exact,
-            true,
+            !preview,
         )?;
         self.render_normals = normals;
         self.coverage = coverage;

@@ -2,6 +2,8 @@
 //! photo: the photo and the mask cut out and box-filtered to the nets' size, the nets'
 //! mask and normals brought back bilinear to the photo's pixels.
 
+use rayon::prelude::*;
+
 use crate::raster::{self, Crop};
 use crate::{Image, NormalMap};
 
@@ -62,24 +64,18 @@ pub(super) fn paste_scalar(values: &[f32], n: usize, crop: Crop, w: usize, h: us
 }
 
 /// The nets' normals (n x n over the crop) at the crop's pixels: bilinear, renormalised,
-/// on the photo's mask only (facing the camera where the nets saw background).
-pub(super) fn upsample_normals(
-    small: &NormalMap,
-    crop: Crop,
-    mask: &[bool],
-    w: usize,
-    h: usize,
-) -> NormalMap {
+/// on the object only (`mask`: the crop's pixels; facing the camera where the nets saw
+/// background).
+pub(super) fn upsample_normals(small: &NormalMap, crop: Crop, mask: &[bool]) -> NormalMap {
     let n = small.width;
     let channel = |k: usize| -> Vec<f32> { small.normals.iter().map(|v| v[k]).collect() };
     let comps = [channel(0), channel(1), channel(2)];
     let f = n as f64 / crop.size as f64;
     let normals = (0..crop.size * crop.size)
+        .into_par_iter()
         .map(|i| {
             let (u, v) = (i % crop.size, i / crop.size);
-            let (x, y) = (crop.x0 + u as i64, crop.y0 + v as i64);
-            let inside = (0..w as i64).contains(&x) && (0..h as i64).contains(&y);
-            if !inside || !mask[y as usize * w + x as usize] {
+            if !mask[i] {
                 return [0.0; 3];
             }
             let (sx, sy) = ((u as f64 + 0.5) * f - 0.5, (v as f64 + 0.5) * f - 0.5);

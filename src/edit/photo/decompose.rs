@@ -66,7 +66,8 @@ pub fn decompose<'a>(
     progress(Stage::Predict);
     let crop = crop_around(mask, w, h);
     let input = crop_image(photo, crop, n);
-    let small_mask: Vec<bool> = crop_image(&mask_image(mask, w, h), crop, n)
+    let crop_mask = raster::crop_values(mask, w, h, crop, false);
+    let small_mask: Vec<bool> = raster::resize(&mask_image(&crop_mask, crop.size, crop.size), n, n)
         .pixels
         .iter()
         .map(|p| p[0] > 0.5)
@@ -78,22 +79,21 @@ pub fn decompose<'a>(
         [1.0; 3]
     };
     let alpha = raster::blur3(mask, w, h);
-    let normals = upsample_normals(&p.normals, crop, mask, w, h);
+    let normals = upsample_normals(&p.normals, crop, &crop_mask);
     let predict_s = t.elapsed().as_secs_f64();
 
-    // refinement on the crop at the photo's resolution, box-filtered to the working size
+    // refinement on the crop at the photo's resolution, box-filtered by a whole factor to
+    // the working size and pixel budget
     let t = Instant::now();
     let target = raster::crop(photo, crop);
-    let crop_mask: Vec<bool> = raster::crop(&mask_image(mask, w, h), crop)
-        .pixels
-        .iter()
-        .map(|p| p[0] > 0.5)
-        .collect();
+    let object_pixels = crop_mask.iter().filter(|&&m| m).count();
     let inputs = Inputs::new(normals.clone(), target, Some(crop_mask.clone()))?;
+    let work = inputs.downsampled(work_factor(crop.size, object_pixels, n, options));
+    drop(inputs);
     let mut fit_options = Options::new(p.material.clone(), Light::FitFrom(p.env.clone()));
     fit_options.steps = options.steps;
-    fit_options.work_size = options.work_size;
-    let work = inputs.at_work_size(options.work_size);
+    // `work` is at the working size already
+    fit_options.work_size = 0;
     // I' against the photo over the object, at the working size, with the given normals
     let judge = |normals: &NormalMap, m: &Material, e: &EnvMap| -> Result<f64> {
         let img = render(renderer, normals, e, m, Accuracy::Exact, false)?;
@@ -105,7 +105,7 @@ pub fn decompose<'a>(
     } else {
         let steps = options.steps;
         progress(Stage::Refine { step: 0, steps });
-        let f = fit(renderer, &inputs, &fit_options, &mut |step, _| {
+        let f = fit(renderer, &work, &fit_options, &mut |step, _| {
             progress(Stage::Refine {
                 step: (step + 1).min(steps),
                 steps,
@@ -119,7 +119,7 @@ pub fn decompose<'a>(
     if options.steps > 0 && options.normal_steps > 0 {
         let (refined, l) = refine_normals(renderer, &work, &material, &env, options, progress)?;
         normal_losses = l;
-        normals = upsample_normals(&refined, crop, mask, w, h);
+        normals = upsample_normals(&refined, crop, &crop_mask);
         work_normals = refined;
     }
     let psnr_refined = judge(&work_normals, &material, &env)?;
@@ -155,9 +155,27 @@ pub fn decompose<'a>(
         },
     };
     let t = Instant::now();
-    d.set_render_normals(renderer, render_normals, coverage)?;
+    d.set_render_normals(renderer, render_normals, coverage, false)?;
     d.stages.push(("reference", t.elapsed().as_secs_f64()));
     Ok(d)
+}
+
+/// The factor the refinement box-filters the crop (`size` pixels a side, `object` of them
+/// on the object) by: the smallest whole one that leaves at most
+/// [`PhotoOptions::work_size`] pixels a side and [`PhotoOptions::work_pixels`] on the
+/// object (a pixel counts when its whole block is on the object, at most `object` / f^2),
+/// but never fewer than `n` (the nets' size) a side for the pixel budget: a crop the nets
+/// see at full resolution is refined at it.
+fn work_factor(size: usize, object: usize, n: usize, options: &PhotoOptions) -> usize {
+    let side = match options.work_size {
+        0 => 1,
+        w => size.div_ceil(w),
+    };
+    let pixels = match options.work_pixels {
+        0 => 1,
+        b => ((object as f64 / b as f64).sqrt().ceil() as usize).min(size / n.max(1)),
+    };
+    side.max(pixels).max(1)
 }
 
 /// The object as the nets find it on the whole photo padded to a square, at `n` x `n`:

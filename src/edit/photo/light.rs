@@ -10,6 +10,8 @@
 //! A background much darker than the object (an object photographed on black) says
 //! nothing of the light: the split is then left as the refinement made it.
 
+use rayon::prelude::*;
+
 use crate::{EnvMap, Image};
 
 /// The light's mean radiance over the background's mean radiance.
@@ -24,18 +26,19 @@ const MAX_FACTOR: f64 = 64.0;
 /// is [`BACKGROUND_GAIN`] times the mean of the photo's pixels off `mask`. Returns the
 /// factors applied (ones where the background says nothing).
 pub fn match_background(env: &mut EnvMap, photo: &Image, mask: &[bool]) -> [f64; 3] {
-    let (mut bg, mut obj, mut n_bg, mut n_obj) = ([0.0f64; 3], [0.0f64; 3], 0usize, 0usize);
-    for (p, &m) in photo.pixels.iter().zip(mask) {
-        let (sum, n) = if m {
-            (&mut obj, &mut n_obj)
-        } else {
-            (&mut bg, &mut n_bg)
-        };
-        for k in 0..3 {
-            sum[k] += f64::from(p[k]);
-        }
-        *n += 1;
-    }
+    // sums per row in parallel, added in row order: the same for any thread count
+    let rows: Vec<Sums> = photo
+        .pixels
+        .par_chunks(photo.width.max(1))
+        .zip(mask.par_chunks(photo.width.max(1)))
+        .map(|(p, m)| Sums::of(p, m))
+        .collect();
+    let Sums {
+        bg,
+        obj,
+        n_bg,
+        n_obj,
+    } = rows.iter().fold(Sums::default(), |a, r| a.add(r));
     if n_bg == 0 || n_obj == 0 {
         return [1.0; 3];
     }
@@ -55,6 +58,42 @@ pub fn match_background(env: &mut EnvMap, photo: &Image, mask: &[bool]) -> [f64;
         }
     }
     factors
+}
+
+/// Sums of the pixels off and on the object, and their counts.
+#[derive(Clone, Copy, Default)]
+struct Sums {
+    bg: [f64; 3],
+    obj: [f64; 3],
+    n_bg: usize,
+    n_obj: usize,
+}
+
+impl Sums {
+    fn of(pixels: &[[f32; 3]], mask: &[bool]) -> Sums {
+        let mut s = Sums::default();
+        for (p, &m) in pixels.iter().zip(mask) {
+            let (sum, n) = if m {
+                (&mut s.obj, &mut s.n_obj)
+            } else {
+                (&mut s.bg, &mut s.n_bg)
+            };
+            for k in 0..3 {
+                sum[k] += f64::from(p[k]);
+            }
+            *n += 1;
+        }
+        s
+    }
+
+    fn add(self, o: &Sums) -> Sums {
+        Sums {
+            bg: std::array::from_fn(|k| self.bg[k] + o.bg[k]),
+            obj: std::array::from_fn(|k| self.obj[k] + o.obj[k]),
+            n_bg: self.n_bg + o.n_bg,
+            n_obj: self.n_obj + o.n_obj,
+        }
+    }
 }
 
 /// The map's mean radiance per channel, weighted by the texels' solid angles.

@@ -43,6 +43,9 @@ pub use pointing::{Pointing, segment_object};
 
 use crate::{EnvMap, Image, Material, NormalMap};
 
+/// The default of [`PhotoOptions::work_pixels`].
+pub const WORK_PIXELS: usize = 2048;
+
 /// How to edit.
 #[derive(Clone, Debug)]
 pub struct PhotoOptions {
@@ -57,8 +60,13 @@ pub struct PhotoOptions {
     /// Weight of the normals' anchor to the nets' (the mean squared difference between a
     /// refined normal and the predicted one over the object).
     pub normal_anchor: f64,
-    /// The refinement runs on the crop box-filtered to at most this many pixels a side.
+    /// The refinement runs on the crop box-filtered by a whole factor to at most this many
+    /// pixels a side (0: no bound) ...
     pub work_size: usize,
+    /// ... and at most this many pixels on the object (0: no bound), down to the nets'
+    /// size a side: it fits a light and a material, which a photo's full resolution does
+    /// not tell better, and each step costs in proportion to these pixels.
+    pub work_pixels: usize,
     /// The nets' input size (square; a multiple of 2^(levels - 1)); 0 (the default): the
     /// size they were trained at ([`Nets::image_size`](crate::nets::Nets::image_size)).
     pub net_size: usize,
@@ -80,6 +88,7 @@ impl Default for PhotoOptions {
             normal_smoothness: 0.05,
             normal_anchor: 0.0,
             work_size: 128,
+            work_pixels: WORK_PIXELS,
             net_size: 0,
             detail: 1.0,
             background_light: true,
