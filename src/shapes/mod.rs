@@ -79,7 +79,28 @@ pub fn render_geometry(mesh: &Mesh, view: &View) -> Result<Geometry> {
     mesh.validate().map_err(crate::error::Error::Invalid)?;
     view.validate()?;
     let placed = view::place(mesh, view)?;
-    let ids = raster::visible(&mesh.triangles, &placed, view);
+    geometry(&mesh.triangles, &placed, view)
+}
+
+/// [`render_geometry`] of a mesh already in camera space (as [`camera_space`] gives one, or
+/// placed by the caller): rasterised where it is, with its vertex normals (its own, or
+/// area-weighted ones), through `view`'s camera and size; its rotation and margin are not
+/// used. What `matedit synth` draws the other objects on a floor with.
+pub fn render_in_camera_space(mesh: &Mesh, view: &View) -> Result<Geometry> {
+    mesh.validate().map_err(crate::error::Error::Invalid)?;
+    view.validate()?;
+    let placed = view::Placed {
+        positions: mesh.positions.iter().map(|&p| mesh::widen(p)).collect(),
+        normals: (mesh.vertex_normals().iter())
+            .map(|&n| mesh::unit(mesh::widen(n)).unwrap_or([0.0; 3]))
+            .collect(),
+    };
+    geometry(&mesh.triangles, &placed, view)
+}
+
+/// The geometry of `triangles` over the `placed` vertices.
+fn geometry(triangles: &[[u32; 3]], placed: &view::Placed, view: &View) -> Result<Geometry> {
+    let ids = raster::visible(triangles, placed, view);
     let w = view.width;
     let (normals, positions): (Vec<[f32; 3]>, Vec<[f64; 3]>) = ids
         .par_iter()
@@ -88,10 +109,10 @@ pub fn render_geometry(mesh: &Mesh, view: &View) -> Result<Geometry> {
             if t == u32::MAX {
                 return ([0.0; 3], [0.0; 3]);
             }
-            let tri = mesh.triangles[t as usize];
-            let n = raster::normal_at(tri, &placed, view, i % w, i / w)
+            let tri = triangles[t as usize];
+            let n = raster::normal_at(tri, placed, view, i % w, i / w)
                 .map_or([0.0; 3], loader_stable_unit);
-            let p = raster::position_at(tri, &placed, view, i % w, i / w).unwrap_or([0.0; 3]);
+            let p = raster::position_at(tri, placed, view, i % w, i / w).unwrap_or([0.0; 3]);
             if n == [0.0; 3] {
                 ([0.0; 3], [0.0; 3])
             } else {
@@ -104,7 +125,7 @@ pub fn render_geometry(mesh: &Mesh, view: &View) -> Result<Geometry> {
     let placed_mesh = Mesh {
         positions: placed.positions.iter().map(f32s).collect(),
         normals: Some(placed.normals.iter().map(f32s).collect()),
-        triangles: mesh.triangles.clone(),
+        triangles: triangles.to_vec(),
     };
     Ok(Geometry {
         normals: NormalMap::new(view.width, view.height, normals)?,

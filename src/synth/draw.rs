@@ -5,15 +5,17 @@ use serde_json::{Value, json};
 
 use super::augment::Views;
 use super::camera_effects::EffectDraws;
-use super::sources::{MaterialItem, SampleMaterial, SampleNormals, Weighted};
+use super::clutter::{Clutter, ClutterLayer};
+use super::draws::{draw_material, merge, pick};
+use super::floor::FloorSource;
+use super::sources::SampleNormals;
 use super::spec::Spec;
 use super::world::{SampleView, World};
 use crate::camera::Camera;
 use crate::error::{Error, Result};
-use crate::material::{Material, N_PARAMS};
+use crate::material::Material;
 use crate::scene::{NormalMap, Scene};
 use crate::shapes::Geometry;
-use crate::spline::N_CTRL_POINTS;
 use crate::splitmix::SplitMix;
 
 /// Mixed into a sample's generator for its camera effects' draws.
@@ -45,6 +47,9 @@ pub struct Sample {
     pub shade: Option<Vec<f32>>,
     /// The floor's visibility at each pixel (1 off the floor), where shadows are on.
     pub floor_visibility: Option<Vec<f32>>,
+    /// The other objects on the floor, where the spec has clutter: rendered into the
+    /// background by [`Sample::paint_clutter`].
+    pub clutter: Vec<ClutterLayer>,
     /// The draws: sources, rotation, mixing weights, seed and index (JSON).
     pub params: Value,
     /// The camera effects' draws, if the spec asks for them.
@@ -81,7 +86,7 @@ impl Spec {
         let mut geometry = None;
 
         let ni = pick(&mut rng, &self.normals);
-        let (normals, nparams) = match &self.normals[ni].source {
+        let (mut normals, nparams) = match &self.normals[ni].source {
             SampleNormals::Sphere(m) => (m.clone(), json!({ "sphere": w })),
             SampleNormals::Bumpy => {
                 let seed = rng.next_u64();
@@ -143,15 +148,24 @@ impl Spec {
 
         let (mi, material, mparams) = draw_material(&mut rng, &self.materials)?;
 
-        let mask: Vec<bool> = normals.normals.iter().map(|n| *n != [0.0f32; 3]).collect();
+        let mut mask: Vec<bool> = normals.normals.iter().map(|n| *n != [0.0f32; 3]).collect();
         let bi = pick(&mut rng, &self.backgrounds);
         let (background, bparams) =
             self.backgrounds[bi]
                 .source
                 .draw(&env, sv.camera, self.image_size, &mut rng);
+        let (mut clutter, mut cparams) = (Vec::new(), None);
         let (background, shade, floor_visibility, fparams) = match (&self.world.floors, &geometry) {
             (Some(floors), Some(g)) => {
                 let fi = pick(&mut wrng, floors);
+                // clutter stands on a floor: none where the sample draws no floor
+                let others = match (&self.clutter, &floors[fi].source) {
+                    (Some(c), FloorSource::Procedural(_) | FloorSource::Images(_)) => {
+                        let mut crng = Clutter::rng(self.seed, k);
+                        Some(c.draw(g, sv, self.image_size, &mut crng)?)
+                    }
+                    _ => None,
+                };
                 let scene = super::floor::FloorScene {
                     geometry: g,
                     env: &env,
@@ -159,14 +173,18 @@ impl Spec {
                     elevation: sv.elevation,
                     size: self.image_size,
                     shadows: self.world.shadows,
+                    others: others.as_ref().map_or(&[], |c| c.geometries.as_slice()),
                 };
                 let d = floors[fi].source.draw(&scene, background, &mut wrng);
+                if let Some(c) = others {
+                    let (layers, p) = c.resolve(g, &mut normals, &mut mask, d.others_shade)?;
+                    (clutter, cparams) = (layers, Some(p));
+                }
                 let p = json!({ "item": fi, "floor": d.params });
                 (d.background, d.shade, d.floor_visibility, Some(p))
             }
             _ => (background, None, None, None),
         };
-
         let mut params = json!({
             "index": k,
             "seed": self.seed,
@@ -195,6 +213,9 @@ impl Spec {
             p["margin"] = json!(sv.margin);
             params["floor"] = p;
         }
+        if self.clutter.is_some() {
+            params["clutter"] = cparams.unwrap_or_else(|| json!({ "drawn": 0, "objects": [] }));
+        }
         Ok(Sample {
             index: k,
             mask,
@@ -203,6 +224,7 @@ impl Spec {
             edit,
             shade,
             floor_visibility,
+            clutter,
             scene: Scene {
                 normals,
                 env,
@@ -267,29 +289,6 @@ impl Sample {
     }
 }
 
-/// A material drawn from `items`: the item's index, the material (perturbed if the item
-/// says so) and what the sample records of it.
-pub(super) fn draw_material(
-    rng: &mut SplitMix,
-    items: &[Weighted<MaterialItem>],
-) -> Result<(usize, Material, Value)> {
-    let mi = pick(rng, items);
-    let item = &items[mi].source;
-    let (material, mut mparams) = match &item.source {
-        SampleMaterial::Fixed(m, p) => (Material::clone(m), p.clone()),
-        SampleMaterial::RandomMerl { mix, from } => random_merl(rng, *mix, from)?,
-    };
-    let material = match &item.perturb {
-        None => material,
-        Some(p) => {
-            let (m, record) = super::perturb::apply(&material, &p.draw(rng))?;
-            merge(&mut mparams, json!({ "perturb": record }));
-            m
-        }
-    };
-    Ok((mi, material, mparams))
-}
-
 /// Sample `k`'s generator for one of the extra streams.
 fn stream(seed: u64, k: u64, constant: u64) -> SplitMix {
     let mut s = SplitMix::for_sample(seed, k);
@@ -312,7 +311,7 @@ impl Spec {
             None => None,
             Some(items) => {
                 let mut rng = stream(self.seed, k, EDIT_STREAM);
-                let (item, material, record) = super::draw::draw_material(&mut rng, items)?;
+                let (item, material, record) = draw_material(&mut rng, items)?;
                 Some(EditDraw {
                     material,
                     record: json!({ "material": record, "material_item": item }),
@@ -329,74 +328,6 @@ impl Spec {
         }
         Ok((effects, edit))
     }
-}
-
-/// Adds `extra`'s keys to the object `into`.
-fn merge(into: &mut Value, extra: Value) {
-    if let (Some(o), Value::Object(e)) = (into.as_object_mut(), extra) {
-        o.extend(e);
-    }
-}
-
-/// An item by weight.
-fn pick<T>(rng: &mut SplitMix, items: &[Weighted<T>]) -> usize {
-    if items.len() == 1 {
-        return 0;
-    }
-    let total: f64 = items.iter().map(|i| i.weight).sum();
-    let mut u = rng.uniform() * total;
-    for (i, item) in items.iter().enumerate() {
-        if u < item.weight {
-            return i;
-        }
-        u -= item.weight;
-    }
-    items.len() - 1
-}
-
-/// `mix` distinct fitted MERL presets of `from` (indices into `presets::merl()`) with
-/// weights uniform on the simplex (the gaps between sorted uniforms: arithmetic only, the
-/// same bits on every machine), mixed control point by control point.
-fn random_merl(rng: &mut SplitMix, mix: usize, from: &[usize]) -> Result<(Material, Value)> {
-    let merl = crate::presets::merl();
-    let mut order: Vec<usize> = from.to_vec();
-    for i in 0..mix {
-        let j = i + rng.below(order.len() - i);
-        order.swap(i, j);
-    }
-    let mut cuts: Vec<f64> = (0..mix - 1).map(|_| rng.uniform()).collect();
-    cuts.sort_by(f64::total_cmp);
-    let mut weights = Vec::with_capacity(mix);
-    let mut prev = 0.0;
-    for &c in &cuts {
-        weights.push(c - prev);
-        prev = c;
-    }
-    weights.push(1.0 - prev);
-    let mut ctrl = [0.0f64; N_PARAMS];
-    let mut parts = Vec::with_capacity(mix);
-    for (&i, &wt) in order[..mix].iter().zip(&weights) {
-        let m = merl[i].material();
-        for (c, v) in ctrl.iter_mut().zip(m.ctrl) {
-            *c += wt * v;
-        }
-        parts.push(json!({ "preset": merl[i].name, "weight": wt }));
-    }
-    // a convex combination stays within the presets' ranges, up to rounding (an exponent
-    // of 1e4 mixed came to 10000.000000000002): clamp to the valid ranges
-    for (i, c) in ctrl.iter_mut().enumerate() {
-        *c = if (i / N_CTRL_POINTS) % 2 == 1 {
-            c.clamp(0.0, crate::material::MAX_EXPONENT)
-        } else {
-            c.clamp(
-                -crate::material::MAX_ABS_SCALE,
-                crate::material::MAX_ABS_SCALE,
-            )
-        };
-    }
-    let material = Material::new("merl-mix", &ctrl)
-        .map_err(|e| Error::Invalid(format!("random merl material: {e}")))?;
-    Ok((material, json!({ "random": "merl", "mix": parts })))
 }
 
 #[cfg(test)]
@@ -419,46 +350,5 @@ mod tests {
         );
         let mut r = SplitMix(1);
         assert!((0..1000).all(|_| r.below(5) < 5));
-    }
-
-    #[test]
-    fn merl_mixes_are_valid() {
-        // many draws: mixing presets whose exponents reach 1e4 once rounded past it
-        let mut rng = SplitMix(3);
-        let all: Vec<usize> = (0..crate::presets::merl().len()).collect();
-        for draw in 0..3000 {
-            let mix = [1, 2, 3, 8, 16][draw % 5];
-            let (m, p) = random_merl(&mut rng, mix, &all).unwrap();
-            m.validate().unwrap();
-            let parts = p["mix"].as_array().unwrap();
-            assert_eq!(parts.len(), mix);
-            let sum: f64 = parts.iter().map(|x| x["weight"].as_f64().unwrap()).sum();
-            assert!((sum - 1.0).abs() < 1e-12);
-        }
-        // two generator states whose mixes of three rounded an exponent of 1e4 past 1e4
-        for (seed, k) in [(1, 151), (3, 38)] {
-            let mut rng = SplitMix::for_sample(seed, k);
-            let _ = (rng.uniform(), rng.next_u64(), rng.next_u64());
-            let _ = (rng.uniform(), rng.next_u64());
-            random_merl(&mut rng, 3, &all)
-                .unwrap()
-                .0
-                .validate()
-                .unwrap();
-        }
-    }
-
-    #[test]
-    fn merl_mixes_draw_from_their_subset() {
-        let merl = crate::presets::merl();
-        let from = [4, 17, 60];
-        let mut rng = SplitMix(9);
-        for _ in 0..200 {
-            let (_, p) = random_merl(&mut rng, 2, &from).unwrap();
-            for part in p["mix"].as_array().unwrap() {
-                let name = part["preset"].as_str().unwrap();
-                assert!(from.iter().any(|&i| merl[i].name == name), "{name}");
-            }
-        }
     }
 }

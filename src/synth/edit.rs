@@ -16,6 +16,7 @@ use super::draw::Sample;
 use super::spec::Spec;
 use super::{Engine, tar};
 use crate::error::{Error, Result};
+use crate::renderer::Renderer;
 use crate::scene::{Batch, Image, Scene};
 
 /// The members an edit adds to a sample, before the others (names sort so).
@@ -33,9 +34,26 @@ impl Spec {
     }
 }
 
+impl Sample {
+    /// Renders the sample's clutter (each object in its own material, under the sample's
+    /// light) into its background, where each is seen: before [`Sample::compose`].
+    /// Painting twice paints the same.
+    pub fn paint_clutter(&mut self, renderer: &Renderer) -> Result<()> {
+        if self.clutter.is_empty() {
+            return Ok(());
+        }
+        let (w, h) = (self.scene.normals.width, self.scene.normals.height);
+        let background = self.background.get_or_insert_with(|| vec![[0.0; 3]; w * h]);
+        let (env, camera) = (&self.scene.env, self.scene.camera);
+        super::clutter::paint(&self.clutter, env, camera, background, renderer)
+            .map_err(|e| Error::Invalid(format!("sample {}: clutter: {e}", self.index)))
+    }
+}
+
 /// A sample's members from the layer's render of its scene: the render over its
 /// background, the edit rendered likewise, both developed by the camera effects.
 pub(super) fn finish(sample: &mut Sample, render: Image, engine: &Engine) -> Result<tar::Members> {
+    sample.paint_clutter(&engine.renderer)?;
     let mut images = vec![sample.compose(render)];
     if let Some(edit) = &sample.edit {
         let k = sample.index;

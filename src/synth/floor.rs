@@ -140,6 +140,9 @@ pub struct FloorDraw {
     pub shade: Option<Vec<f32>>,
     /// The floor's visibility at each pixel (1 off the floor), where shadows are on.
     pub floor_visibility: Option<Vec<f32>>,
+    /// The factor on each other object's pixels ([`FloorScene::others`]), where shadows
+    /// are on.
+    pub others_shade: Vec<Vec<f32>>,
     /// What the sample records.
     pub params: Value,
 }
@@ -158,6 +161,10 @@ pub struct FloorScene<'a> {
     pub size: (usize, usize),
     /// Shadows on.
     pub shadows: bool,
+    /// Other objects standing on the floor (clutter, [`super::clutter`]): the floor is
+    /// not drawn where they are, and with shadows on they cast shadows as the object does
+    /// and are shaded as it is.
+    pub others: &'a [Geometry],
 }
 
 impl FloorSource {
@@ -175,6 +182,7 @@ impl FloorSource {
                     background,
                     shade: None,
                     floor_visibility: None,
+                    others_shade: Vec::new(),
                     params: json!("none"),
                 };
             }
@@ -196,23 +204,22 @@ fn draw_floor(
 ) -> FloorDraw {
     let (w, h) = scene.size;
     let g = scene.geometry;
-    let up = up(scene.elevation);
-    let (s, c) = scene.elevation.to_radians().sin_cos();
-    // the floor's own axes: the world's x and z in the camera frame
-    let (ex, ez) = ([1.0, 0.0, 0.0], [0.0, -s, c]);
+    let (ex, up, ez) = axes(scene.elevation);
     let verts = g.placed.positions.iter().map(|p| p.map(f64::from));
-    let height = verts
-        .clone()
-        .map(|p| dot(p, up))
-        .fold(f64::INFINITY, f64::min);
+    let height = lowest(&g.placed, up);
     let n = g.placed.positions.len().max(1) as f64;
     let centre = verts.fold([0.0; 3], |a, p| {
         [a[0] + p[0] / n, a[1] + p[1] / n, a[2] + p[2] / n]
     });
     let e = shadow::irradiance(scene.env, up);
-    let shadows = scene
-        .shadows
-        .then(|| Shadows::new(&g.placed, shadow::lights(scene.env, up)));
+    let shadows = scene.shadows.then(|| {
+        let meshes: Vec<_> = std::iter::once(g)
+            .chain(scene.others)
+            .map(|o| &o.placed)
+            .collect();
+        Shadows::of(&meshes, shadow::lights(scene.env, up))
+    });
+    let covered = |i: usize| g.mask[i] || scene.others.iter().any(|o| o.mask[i]);
     let tan = match scene.camera {
         Camera::Perspective { fov_y_deg } => (fov_y_deg.to_radians() / 2.0).tan(),
         Camera::Orthographic => 1.0,
@@ -248,7 +255,7 @@ fn draw_floor(
             let mut out = bg[y * w..(y + 1) * w].to_vec();
             let mut vis_row = vec![1.0f32; w];
             for x in 0..w {
-                if g.mask[y * w + x] {
+                if covered(y * w + x) {
                     continue;
                 }
                 let mut sum = [0.0f64; 3];
@@ -285,10 +292,10 @@ fn draw_floor(
     let m = texture.mean();
     let floor_lum =
         crate::envgen::colour::luminance([0, 1, 2].map(|k| f64::from(m[k]) * radiance[k]));
-    let shade = shadows.as_ref().map(|s| {
-        g.positions
+    let shade_of = |o: &Geometry, s: &Shadows| -> Vec<f32> {
+        o.positions
             .par_iter()
-            .zip(g.normals.normals.par_iter())
+            .zip(o.normals.normals.par_iter())
             .map(|(p, n)| {
                 if *n == [0.0; 3] {
                     return 1.0;
@@ -296,8 +303,13 @@ fn draw_floor(
                 let n = n.map(f64::from);
                 s.visibility(*p, n, 0.03, 1.5, floor_lum) as f32
             })
-            .collect::<Vec<f32>>()
-    });
+            .collect()
+    };
+    let shade = shadows.as_ref().map(|s| shade_of(g, s));
+    let others_shade = match &shadows {
+        Some(s) => scene.others.iter().map(|o| shade_of(o, s)).collect(),
+        None => Vec::new(),
+    };
     let mut params = json!({ "texture": record, "irradiance": e, "height": height });
     if let Some(s) = &shadows {
         params["shadow_maps"] = json!(s.maps());
@@ -306,8 +318,23 @@ fn draw_floor(
         background: Some(bg),
         floor_visibility: shadows.is_some().then_some(floor_vis),
         shade,
+        others_shade,
         params,
     }
+}
+
+/// The height along `up` of `mesh`'s lowest vertex: where the floor under it lies.
+pub fn lowest(mesh: &crate::shapes::Mesh, up: [f64; 3]) -> f64 {
+    (mesh.positions.iter())
+        .map(|p| dot(p.map(f64::from), up))
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// The world's x, up and z in the camera frame at `elevation` degrees: the floor's own
+/// axes (x and z along it) and its normal.
+pub fn axes(elevation: f64) -> ([f64; 3], [f64; 3], [f64; 3]) {
+    let (s, c) = elevation.to_radians().sin_cos();
+    ([1.0, 0.0, 0.0], up(elevation), [0.0, -s, c])
 }
 
 /// The world's up in the camera frame at `elevation` degrees: the floor's normal.

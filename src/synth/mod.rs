@@ -14,9 +14,10 @@
 //! and Ray.
 //!
 //! Files: [`spec`] (the spec and its top-level keys) on [`sources`] (its source lists) on
-//! `files.rs` (the files and folders it names); [`draw`] (sample k); [`world`] (the
-//! photo-like options: fov and elevation ranges) with [`floor`], [`textures`] and
-//! [`shadow`]; [`camera_effects`] and [`edit`] (what a sample's render becomes: a photo as
+//! `files.rs` (the files and folders it names); [`draw`] (sample k) on `draws.rs` (an
+//! item by weight, a material); [`world`] (the photo-like options: fov and elevation
+//! ranges) with [`floor`], [`textures`], [`shadow`] and [`clutter`] (other objects on the
+//! floor); [`camera_effects`] and [`edit`] (what a sample's render becomes: a photo as
 //! a camera writes it, the true edit beside it); [`tar`] (a chunk's
 //! bytes); `chunk.rs` (a chunk's file, its record, the check that skips it); [`shard`];
 //! this file (the engine, running a shard, verifying, the manifest).
@@ -25,7 +26,9 @@ pub mod augment;
 pub mod background;
 pub mod camera_effects;
 mod chunk;
+pub mod clutter;
 pub mod draw;
+mod draws;
 pub mod edit;
 mod files;
 pub mod floor;

@@ -201,24 +201,39 @@ impl ShadowMap {
     }
 }
 
-/// The shadow maps of a placed mesh along each light above the floor.
+/// The shadow maps of placed meshes along each light above the floor.
 pub struct Shadows {
     lights: Vec<ShadowLight>,
-    maps: Vec<Option<ShadowMap>>,
+    /// Per light: one map per mesh (`None` below the floor).
+    maps: Vec<Option<Vec<ShadowMap>>>,
 }
 
 impl Shadows {
     /// The maps of `mesh` (camera space) for `lights`.
     pub fn new(mesh: &Mesh, lights: Vec<ShadowLight>) -> Shadows {
+        Shadows::of(&[mesh], lights)
+    }
+
+    /// The maps of several meshes (camera space) for `lights`: each mesh has its own map
+    /// along each light (a map across them all would spread its texels over the gaps),
+    /// and a point is lit from a light where none of them blocks it.
+    pub fn of(meshes: &[&Mesh], lights: Vec<ShadowLight>) -> Shadows {
         use rayon::prelude::*;
         let maps = lights
             .par_iter()
-            .map(|l| l.above.then(|| ShadowMap::new(mesh, l.dir)))
+            .map(|l| {
+                l.above.then(|| {
+                    meshes
+                        .iter()
+                        .map(|m| ShadowMap::new(m, l.dir))
+                        .collect::<Vec<_>>()
+                })
+            })
             .collect();
         Shadows { lights, maps }
     }
 
-    /// Shadow maps made (directions above the floor).
+    /// Directions with shadow maps (those above the floor).
     pub fn maps(&self) -> usize {
         self.maps.iter().flatten().count()
     }
@@ -238,7 +253,8 @@ impl Shadows {
             }
             all += w;
             lit += match m {
-                Some(m) => w * m.lit(p, bias),
+                // one mesh: its map's value, the bits of a single map
+                Some(m) => w * m.iter().map(|m| m.lit(p, bias)).product::<f64>(),
                 None => floor * l.solid_angle * dot(n, l.dir),
             };
         }

@@ -20,6 +20,7 @@ use sha2::{Digest, Sha256};
 
 use super::background::{self, Background};
 use super::camera_effects::CameraEffects;
+use super::clutter::{self, Clutter};
 use super::sources::{
     self, EnvSource, MaterialItem, SampleNormals, Weighted, image_dims, serde_message,
 };
@@ -46,6 +47,7 @@ struct RawSpec {
     elevation: Option<Value>,
     floor: Option<Vec<Value>>,
     shadows: Option<bool>,
+    clutter: Option<Value>,
     convention: Option<String>,
     normals: Vec<Value>,
     envs: Vec<Value>,
@@ -88,6 +90,8 @@ pub struct Spec {
     pub edit: Option<Vec<Weighted<MaterialItem>>>,
     /// The photo-like options: fov and elevation ranges, floor, shadows.
     pub world: World,
+    /// Other objects on the floor (none: no clutter).
+    pub clutter: Option<Clutter>,
     /// SHA-256 of the spec's content and of every input file, hex.
     pub digest: String,
 }
@@ -211,6 +215,15 @@ impl Spec {
         let edit = (raw.edit.as_ref())
             .map(|v| edit_materials(v, &base, &mut hasher, &err))
             .transpose()?;
+        let defaults = || clutter::Defaults {
+            normals: &normals,
+            materials: &materials,
+            image_size,
+            has_floor: world.floors.is_some(),
+        };
+        let clutter = (raw.clutter.as_ref())
+            .map(|v| Clutter::parse(v, defaults(), &base, &mut hasher, &err))
+            .transpose()?;
 
         Ok(Spec {
             path: path.to_path_buf(),
@@ -228,6 +241,7 @@ impl Spec {
             camera_effects,
             edit,
             world,
+            clutter,
             digest: hex(&hasher.finalize()),
         })
     }

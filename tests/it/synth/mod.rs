@@ -7,6 +7,7 @@
 //! cpu`), except the spec of the documentation (64 x 64, 12 samples).
 
 mod camera_effects;
+mod clutter;
 mod photo;
 mod refusals;
 mod renders;
@@ -102,4 +103,18 @@ fn manifest(dir: &Path) -> serde_json::Value {
 /// Pixels of a normal map that face the viewer (the object, not the background).
 fn foreground(n: &matedit::NormalMap) -> usize {
     n.normals.iter().filter(|v| v[2] > 0.0).count()
+}
+
+/// Runs `spec` whole into `root/whole` and as `order.len()` shards, in that order, into
+/// `root/split`, and checks that both wrote the same data files, byte for byte.
+fn assert_shards_agree(spec: &Path, root: &Path, order: &[usize]) {
+    let whole = root.join("whole");
+    synth_cmd(spec, &whole, &[]).assert().success();
+    let split = root.join("split");
+    for i in order {
+        synth_cmd(spec, &split, &["--shard", &format!("{i}/{}", order.len())])
+            .assert()
+            .success();
+    }
+    assert!(data(&whole) == data(&split), "the shards wrote other bytes");
 }

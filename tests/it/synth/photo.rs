@@ -5,7 +5,7 @@
 use matedit::io::npy;
 use matedit::synth;
 
-use super::{data, dir, synth_cmd};
+use super::{assert_shards_agree, dir};
 
 /// A spec in `root` lit by a constant map of 0.5 (`env.npy`, 8 x 16), `extra` keys joined.
 fn spec_with(root: &std::path::Path, extra: &str) -> std::path::PathBuf {
@@ -33,15 +33,7 @@ fn photo_options_are_deterministic_and_shards_agree() {
         r#""fov": [30, 50], "elevation": [0, 40], "shadows": true, "backgrounds": ["env"],
            "floor": [{"procedural": "wood"}, {"procedural": "tiles"}, {"procedural": "cloth"}, "none"]"#,
     );
-    let whole = t.path().join("whole");
-    synth_cmd(&spec, &whole, &[]).assert().success();
-    let split = t.path().join("split");
-    for i in [1, 0] {
-        synth_cmd(&spec, &split, &["--shard", &format!("{i}/2")])
-            .assert()
-            .success();
-    }
-    assert!(data(&whole) == data(&split), "the shards wrote other bytes");
+    assert_shards_agree(&spec, t.path(), &[1, 0]);
     let sp = synth::Spec::load(&spec).unwrap();
     for k in 0..4 {
         let (a, b) = (sp.sample(k).unwrap(), sp.sample(k).unwrap());

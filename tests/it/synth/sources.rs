@@ -2,7 +2,7 @@
 
 use matedit::synth;
 
-use super::{data, dir, foreground, synth_cmd};
+use super::{assert_shards_agree, dir, foreground, synth_cmd};
 
 #[test]
 fn shapes_and_procedural_lights_are_sources_and_shards_agree() {
@@ -19,15 +19,7 @@ fn shapes_and_procedural_lights_are_sources_and_shards_agree() {
            "materials": [{"preset": "gold"}]}"#,
     )
     .unwrap();
-    let whole = t.path().join("whole");
-    synth_cmd(&spec, &whole, &[]).assert().success();
-    let split = t.path().join("split");
-    for i in [1, 0, 2] {
-        synth_cmd(&spec, &split, &["--shard", &format!("{i}/3")])
-            .assert()
-            .success();
-    }
-    assert!(data(&whole) == data(&split), "the shards wrote other bytes");
+    assert_shards_agree(&spec, t.path(), &[1, 0, 2]);
     let sp = synth::Spec::load(&spec).unwrap();
     let (mut shapes, mut lights) = (Vec::new(), Vec::new());
     for k in 0..6 {
@@ -105,15 +97,7 @@ fn meshes_are_a_source_turned_per_sample() {
         )
     };
     std::fs::write(&spec, body(r#"{"mesh": "meshes"}"#)).unwrap();
-    let whole = t.path().join("whole");
-    synth_cmd(&spec, &whole, &[]).assert().success();
-    let split = t.path().join("split");
-    for i in [1, 0] {
-        synth_cmd(&spec, &split, &["--shard", &format!("{i}/2")])
-            .assert()
-            .success();
-    }
-    assert!(data(&whole) == data(&split), "the shards wrote other bytes");
+    assert_shards_agree(&spec, t.path(), &[1, 0]);
     let sp = synth::Spec::load(&spec).unwrap();
     for k in 0..4 {
         let x = sp.sample(k).unwrap();

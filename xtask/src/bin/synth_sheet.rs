@@ -32,7 +32,8 @@ fn main() -> matedit::Result<()> {
         pixels: vec![[0.0; 3]; cols * w * rows * h],
     };
     for k in 0..spec.count {
-        let sample = spec.sample(k)?;
+        let mut sample = spec.sample(k)?;
+        sample.paint_clutter(&renderer)?;
         let render = renderer
             .render(&Batch::single(sample.scene.clone())?)?
             .remove(0);
