@@ -93,10 +93,20 @@ def load_config(path) -> dict:
     path = pathlib.Path(path)
     if not path.is_file():
         raise ValueError(f"{path}: no such config file")
+    # the config's folder on the import path while it runs, as `python CONFIG` has it, so
+    # that a folder's configs can share settings from a module beside them; what it
+    # imported from there is forgotten, so another folder's module of the same name loads
+    folder, before = str(path.parent.resolve()), set(sys.modules)
+    sys.path.insert(0, folder)
     try:
         given = runpy.run_path(str(path))
     except Exception as e:
         raise ValueError(f"{path}: {type(e).__name__}: {e}") from None
+    finally:
+        sys.path.remove(folder)
+        for name in set(sys.modules) - before:
+            if str(pathlib.Path(getattr(sys.modules[name], "__file__", None) or "/").parent) == folder:
+                del sys.modules[name]
     # the file's settings: its public names but for imported modules and functions
     given = {k: v for k, v in given.items() if not k.startswith("_") and not callable(v) and not hasattr(v, "__file__")}
     cfg = dict(DEFAULTS)
