@@ -30,7 +30,7 @@
 //! - [`shapes`]: meshes and procedural shapes rasterised to normal maps (on the scene
 //!   types);
 //! - [`nets`]: the networks of `matedit.nets` (normals and mask, material, light) run on
-//!   the CPU with candle from their safetensors weights (on the scene types);
+//!   the CPU from their safetensors weights (on the scene types);
 //! - what uses the renderer: [`edit`] (a material fitted to an image), [`synth`]
 //!   (datasets), [`fit_brdf`] (the DSBRDF fitted to measured [`brdf`]s), [`io`] (files in and
 //!   out), [`continuous_light`] (the continuous light);

@@ -181,7 +181,8 @@ pub(crate) fn procedural_env<'py>(
     height: usize,
     width: usize,
 ) -> PyResult<Bound<'py, PyArrayDyn<f32>>> {
-    let kind: matedit::envgen::LightKind = kind.parse().map_err(|e| invalid(format!("kind: {e}")))?;
+    let kind: matedit::envgen::LightKind =
+        kind.parse().map_err(|e| invalid(format!("kind: {e}")))?;
     let env = matedit::envgen::generate(kind, seed, height, width).map_err(py_err)?;
     stack(py, false, height, width, vec![&env.texels[..]])
 }

@@ -235,8 +235,7 @@ impl Renderer {
             .collect();
         let (grads, _) = self
             .timed(py, || {
-                self.inner
-                    .backward_with(&s.batch, &ups, &acc, wanted)
+                self.inner.backward_with(&s.batch, &ups, &acc, wanted)
             })
             .map_err(py_err)?;
         let batched = s.batched || ub;

@@ -82,11 +82,13 @@ def make_photo(path):
 
 
 class Server:
-    """`matedit serve --port 0 --steps 20`; its URL from the first stderr line, the rest kept."""
+    """`matedit serve --port 0 --steps 4`; its URL from the first stderr line, the rest kept.
+    Four refinement steps, not the default 20: these tests are of the page, and the steps are
+    most of what a debug build spends on a photo (the refinement's quality is tested in Rust)."""
 
     def __init__(self, binary, cwd):
         self.lines = []
-        self.proc = subprocess.Popen([str(binary), "serve", "--port", "0", "--steps", "20"], cwd=cwd,
+        self.proc = subprocess.Popen([str(binary), "serve", "--port", "0", "--steps", "4"], cwd=cwd,
                                      stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                                      stderr=subprocess.PIPE, text=True, errors="replace")
         self.url = None

@@ -1,53 +1,56 @@
-//! The layers of model.py in candle, named as its modules are (`block`, `Encoder`,
-//! `NormalsNet`, `GlobalNet`), each built from its tensors in a [`Weights`].
+//! The layers of model.py, named as its modules are (`block`, `Encoder`, `NormalsNet`,
+//! `GlobalNet`), each built from its tensors in a [`Weights`], on one image's [`Planes`].
 
-use candle_core::{D, Result, Tensor};
 use rayon::prelude::*;
 
+use super::planes::{Planes, matmul};
 use super::weights::{NetsConfig, Weights};
 use crate::error::Result as MResult;
 
 /// GroupNorm's epsilon (PyTorch's default).
 const GN_EPS: f64 = 1e-5;
 
-/// `nn.Conv2d` (stride 1, padding k / 2) with bias, on one image, as a matrix product of
-/// the flattened kernel (cout, cin k k) and the image's k x k neighbourhoods (cin k k, H W).
-/// Not candle's `conv2d`: candle-core 0.9.2's CPU convolution gives wrong sums for some
-/// shapes (a 16 x 16 image, 16 -> 8 channels: 4.85 off a direct loop; 12 x 20 is right).
+/// `nn.Conv2d` (stride 1, padding k / 2) with bias, as a matrix product of the flattened
+/// kernel (cout, cin k k) and the image's k x k neighbourhoods (cin k k, H W).
 struct Conv {
     /// (cout, cin k k)
-    weight: Tensor,
-    bias: Tensor,
+    weight: Vec<f32>,
+    bias: Vec<f32>,
+    cin: usize,
     k: usize,
 }
 
 impl Conv {
     fn new(w: &mut Weights, name: &str, cin: usize, cout: usize, k: usize) -> MResult<Self> {
         Ok(Conv {
-            weight: w
-                .take(&format!("{name}.weight"), &[cout, cin, k, k])?
-                .reshape((cout, cin * k * k))?,
-            bias: w
-                .take(&format!("{name}.bias"), &[cout])?
-                .reshape((1, cout, 1, 1))?,
+            weight: w.take(&format!("{name}.weight"), &[cout, cin, k, k])?,
+            bias: w.take(&format!("{name}.bias"), &[cout])?,
+            cin,
             k,
         })
     }
 
-    fn forward(&self, x: &Tensor) -> Result<Tensor> {
-        let (b, cin, h, w) = x.dims4()?;
-        let (k, p) = (self.k, self.k / 2);
-        let cols = if k == 1 {
-            x.reshape((b * cin, h * w))?
+    fn forward(&self, x: &Planes) -> Planes {
+        assert_eq!(x.c, self.cin, "conv: input channels");
+        let (k, p, area) = (self.k, self.k / 2, x.area());
+        let cout = self.bias.len();
+        let ckk = self.cin * k * k;
+        let mut y = if k == 1 {
+            matmul(&self.weight, false, &x.v, cout, ckk, area)
         } else {
-            let cols = im2col(&x.flatten_all()?.to_vec1::<f32>()?, b * cin, h, w, k, p);
-            Tensor::from_vec(cols, (b * cin * k * k, h * w), x.device())?
+            let cols = im2col(&x.v, self.cin, x.h, x.w, k, p);
+            matmul(&self.weight, false, &cols, cout, ckk, area)
         };
-        let cout = self.weight.dim(0)?;
-        self.weight
-            .matmul(&cols)?
-            .reshape((b, cout, h, w))?
-            .broadcast_add(&self.bias)
+        add_bias(&mut y, &self.bias);
+        Planes::new(cout, x.h, x.w, y)
+    }
+}
+
+/// Adds `bias[o]` to plane o of `y` (one plane per bias value).
+fn add_bias(y: &mut [f32], bias: &[f32]) {
+    let area = y.len() / bias.len();
+    for (plane, &b) in y.chunks_mut(area).zip(bias) {
+        plane.iter_mut().for_each(|v| *v += b);
     }
 }
 
@@ -78,37 +81,42 @@ fn im2col(x: &[f32], c: usize, h: usize, w: usize, k: usize, p: usize) -> Vec<f3
     cols
 }
 
-/// `nn.ConvTranspose2d(cin, cout, 2, stride=2)` on one image: each input pixel becomes a
-/// 2 x 2 block, y[o, 2i + a, 2j + b] = sum_c x[c, i, j] w[c, o, a, b] + bias[o].
+/// `nn.ConvTranspose2d(cin, cout, 2, stride=2)`: each input pixel becomes a 2 x 2 block,
+/// y[o, 2i + a, 2j + b] = sum_c x[c, i, j] w[c, o, a, b] + bias[o].
 struct Up {
-    /// (cout 2 2, cin)
-    weight: Tensor,
-    bias: Tensor,
+    /// (cin, cout 2 2), as stored
+    weight: Vec<f32>,
+    bias: Vec<f32>,
+    cin: usize,
 }
 
 impl Up {
     fn new(w: &mut Weights, name: &str, cin: usize, cout: usize) -> MResult<Self> {
         Ok(Up {
-            weight: w
-                .take(&format!("{name}.weight"), &[cin, cout, 2, 2])?
-                .reshape((cin, cout * 4))?
-                .t()?
-                .contiguous()?,
-            bias: w
-                .take(&format!("{name}.bias"), &[cout])?
-                .reshape((1, cout, 1, 1))?,
+            weight: w.take(&format!("{name}.weight"), &[cin, cout, 2, 2])?,
+            bias: w.take(&format!("{name}.bias"), &[cout])?,
+            cin,
         })
     }
 
-    fn forward(&self, x: &Tensor) -> Result<Tensor> {
-        let (b, cin, h, w) = x.dims4()?;
-        let cout = self.weight.dim(0)? / 4;
-        self.weight
-            .matmul(&x.reshape((b * cin, h * w))?)? // (cout 2 2, H W)
-            .reshape((cout, 2, 2, h, w))?
-            .permute((0, 3, 1, 4, 2))? // (cout, H, 2, W, 2)
-            .reshape((b, cout, 2 * h, 2 * w))?
-            .broadcast_add(&self.bias)
+    fn forward(&self, x: &Planes) -> Planes {
+        assert_eq!(x.c, self.cin, "up: input channels");
+        let (h, w, cout) = (x.h, x.w, self.bias.len());
+        // (cout 2 2, H W): the stored weight read transposed
+        let y4 = matmul(&self.weight, true, &x.v, cout * 4, self.cin, h * w);
+        let mut y = vec![0f32; cout * 4 * h * w];
+        for (o, block) in y4.chunks_exact(4 * h * w).enumerate() {
+            let out = &mut y[o * 4 * h * w..(o + 1) * 4 * h * w];
+            for (ab, src) in block.chunks_exact(h * w).enumerate() {
+                let (a, b) = (ab / 2, ab % 2);
+                for i in 0..h {
+                    for j in 0..w {
+                        out[(2 * i + a) * 2 * w + 2 * j + b] = src[i * w + j] + self.bias[o];
+                    }
+                }
+            }
+        }
+        Planes::new(cout, 2 * h, 2 * w, y)
     }
 }
 
@@ -123,20 +131,19 @@ struct GroupNorm {
 impl GroupNorm {
     fn new(w: &mut Weights, name: &str, groups: usize, c: usize) -> MResult<Self> {
         Ok(GroupNorm {
-            weight: w.take(&format!("{name}.weight"), &[c])?.to_vec1()?,
-            bias: w.take(&format!("{name}.bias"), &[c])?.to_vec1()?,
+            weight: w.take(&format!("{name}.weight"), &[c])?,
+            bias: w.take(&format!("{name}.bias"), &[c])?,
             groups,
         })
     }
 
     /// relu((x - mean) / sqrt(var + eps) weight + bias), mean and (biased) variance per
-    /// image and group.
-    fn forward_relu(&self, x: &Tensor) -> Result<Tensor> {
-        let (b, c, h, wd) = x.dims4()?;
-        let per_channel = h * wd;
+    /// group.
+    fn forward_relu(&self, mut x: Planes) -> Planes {
+        let c = x.c;
+        let per_channel = x.area();
         let per_group = c / self.groups * per_channel;
-        let mut v = x.flatten_all()?.to_vec1::<f32>()?;
-        v.par_chunks_mut(per_group)
+        x.v.par_chunks_mut(per_group)
             .enumerate()
             .for_each(|(g, group)| {
                 let n = group.len() as f64;
@@ -148,7 +155,7 @@ impl GroupNorm {
                     / n;
                 let inv = 1.0 / (var + GN_EPS).sqrt();
                 for (j, channel) in group.chunks_mut(per_channel).enumerate() {
-                    let ch = (g % self.groups) * (c / self.groups) + j;
+                    let ch = g * (c / self.groups) + j;
                     let scale = inv * f64::from(self.weight[ch]);
                     let shift = f64::from(self.bias[ch]) - mean * scale;
                     let (scale, shift) = (scale as f32, shift as f32);
@@ -157,7 +164,7 @@ impl GroupNorm {
                     }
                 }
             });
-        Tensor::from_vec(v, (b, c, h, wd), x.device())
+        x
     }
 }
 
@@ -186,9 +193,9 @@ impl Block {
         })
     }
 
-    fn forward(&self, x: &Tensor) -> Result<Tensor> {
-        let x = self.norm1.forward_relu(&self.conv1.forward(x)?)?;
-        self.norm2.forward_relu(&self.conv2.forward(&x)?)
+    fn forward(&self, x: &Planes) -> Planes {
+        let x = self.norm1.forward_relu(self.conv1.forward(x));
+        self.norm2.forward_relu(self.conv2.forward(&x))
     }
 }
 
@@ -210,21 +217,20 @@ impl Encoder {
     }
 
     /// Every level's features.
-    fn forward(&self, x: &Tensor) -> Result<Vec<Tensor>> {
-        let mut feats: Vec<Tensor> = Vec::with_capacity(self.blocks.len());
-        for (i, b) in self.blocks.iter().enumerate() {
-            let input = match feats.last() {
-                None => x.clone(),
-                Some(f) => f.max_pool2d(2)?,
+    fn forward(&self, x: &Planes) -> Vec<Planes> {
+        let mut feats: Vec<Planes> = Vec::with_capacity(self.blocks.len());
+        for b in &self.blocks {
+            let f = match feats.last() {
+                None => b.forward(x),
+                Some(f) => b.forward(&f.max_pool2()),
             };
-            debug_assert!(i == feats.len());
-            feats.push(b.forward(&input)?);
+            feats.push(f);
         }
-        Ok(feats)
+        feats
     }
 }
 
-/// `NormalsNet`: a U-Net, (1, 3, H, W) -> unit normals (1, H, W, 3) and mask logits (1, H, W).
+/// `NormalsNet`: a U-Net, 3 planes -> unit normals (H W of xyz) and mask logits (H W).
 pub(super) struct NormalsNet {
     enc: Encoder,
     up: Vec<Up>,
@@ -251,25 +257,26 @@ impl NormalsNet {
         Ok(NormalsNet { enc, up, dec, head })
     }
 
-    pub(super) fn forward(&self, x: &Tensor) -> Result<(Tensor, Tensor)> {
-        let feats = self.enc.forward(x)?;
-        let mut y = feats[feats.len() - 1].clone();
+    pub(super) fn forward(&self, x: &Planes) -> (Vec<[f32; 3]>, Vec<f32>) {
+        let mut feats = self.enc.forward(x);
+        let mut y = feats.pop().expect("at least one level");
         for i in (0..self.dec.len()).rev() {
-            let upsampled = self.up[i].forward(&y)?;
-            y = self.dec[i].forward(&Tensor::cat(&[&upsampled, &feats[i]], 1)?)?;
+            y = self.dec[i].forward(&self.up[i].forward(&y).cat(&feats[i]));
         }
-        let out = self.head.forward(&y)?.permute((0, 2, 3, 1))?; // (1, H, W, 4)
-        // the bias towards +z of model.py
-        let plus_z = Tensor::new(&[0f32, 0.0, 1.0], out.device())?;
-        let n = out.narrow(D::Minus1, 0, 3)?.broadcast_add(&plus_z)?;
-        // F.normalize(n, dim=-1, eps=1e-6)
-        let len = n
-            .sqr()?
-            .sum_keepdim(D::Minus1)?
-            .sqrt()?
-            .clamp(1e-6f32, f32::MAX)?;
-        let logits = out.narrow(D::Minus1, 3, 1)?.squeeze(D::Minus1)?;
-        Ok((n.broadcast_div(&len)?, logits))
+        let out = self.head.forward(&y);
+        let normals = (0..out.area())
+            .map(|i| {
+                // the bias towards +z of model.py, then F.normalize(n, dim=-1, eps=1e-6)
+                let n = [
+                    out.v[i],
+                    out.v[out.area() + i],
+                    out.v[2 * out.area() + i] + 1.0,
+                ];
+                let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt().max(1e-6);
+                n.map(|v| v / len)
+            })
+            .collect();
+        (normals, out.plane(3).to_vec())
     }
 }
 
@@ -279,8 +286,9 @@ pub(super) struct GlobalNet {
     enc: Encoder,
     /// The encoder's downsampling factor, 2^(levels - 1).
     factor: usize,
-    lin1: (Tensor, Tensor),
-    lin2: (Tensor, Tensor),
+    /// (weight (cout, cin), bias) of the head's two linear layers.
+    lin1: (Vec<f32>, Vec<f32>),
+    lin2: (Vec<f32>, Vec<f32>),
 }
 
 impl GlobalNet {
@@ -289,9 +297,7 @@ impl GlobalNet {
         let c = enc.channels[enc.channels.len() - 1];
         let lin = |w: &mut Weights, i: usize, cin: usize, cout: usize| -> MResult<_> {
             Ok((
-                w.take(&format!("{name}.head.{i}.weight"), &[cout, cin])?
-                    .t()?
-                    .contiguous()?,
+                w.take(&format!("{name}.head.{i}.weight"), &[cout, cin])?,
                 w.take(&format!("{name}.head.{i}.bias"), &[cout])?,
             ))
         };
@@ -305,27 +311,30 @@ impl GlobalNet {
         })
     }
 
-    /// x (1, 3, H, W), mask (1, 1, H, W) as 0 and 1 -> (1, nout).
-    pub(super) fn forward(&self, x: &Tensor, mask: &Tensor) -> Result<Tensor> {
-        let feats = self.enc.forward(&Tensor::cat(&[x, mask], 1)?)?;
+    /// x (3 planes), mask (1 plane of 0 and 1) -> nout values.
+    pub(super) fn forward(&self, x: &Planes, mask: &Planes) -> Vec<f32> {
+        let feats = self.enc.forward(&x.cat(mask));
         let f = &feats[feats.len() - 1];
         // adaptive_avg_pool2d to f's size: H and W are multiples of the factor
-        let mf = mask.avg_pool2d(self.factor)?;
-        let area = mf
-            .sum_keepdim((2, 3))?
-            .clamp(1e-6f32, f32::MAX)?
-            .flatten_from(1)?;
-        let on_object = f
-            .broadcast_mul(&mf)?
-            .sum_keepdim((2, 3))?
-            .flatten_from(1)?
-            .broadcast_div(&area)?;
-        let mean = f.mean_keepdim((2, 3))?.flatten_from(1)?;
-        let h = Tensor::cat(&[&on_object, &mean], 1)?;
-        let h = h
-            .matmul(&self.lin1.0)?
-            .broadcast_add(&self.lin1.1)?
-            .relu()?;
-        h.matmul(&self.lin2.0)?.broadcast_add(&self.lin2.1)
+        let mf = mask.avg_pool(self.factor);
+        let area = mf.v.iter().sum::<f32>().max(1e-6);
+        let on_object = (0..f.c).map(|ci| {
+            let sum: f32 = f.plane(ci).iter().zip(&mf.v).map(|(a, b)| a * b).sum();
+            sum / area
+        });
+        let mean = (0..f.c).map(|ci| f.plane(ci).iter().sum::<f32>() / f.area() as f32);
+        let h: Vec<f32> = on_object.chain(mean).collect();
+        let h: Vec<f32> = linear(&self.lin1, &h)
+            .into_iter()
+            .map(|v| v.max(0.0))
+            .collect();
+        linear(&self.lin2, &h)
     }
+}
+
+/// `nn.Linear` on one vector: weight (cout, cin) times x, plus bias.
+fn linear((weight, bias): &(Vec<f32>, Vec<f32>), x: &[f32]) -> Vec<f32> {
+    let mut y = matmul(weight, false, x, bias.len(), x.len(), 1);
+    y.iter_mut().zip(bias).for_each(|(y, b)| *y += b);
+    y
 }

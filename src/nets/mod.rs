@@ -1,5 +1,5 @@
 //! The three networks of python/matedit/nets/model.py (normals and mask, material, light)
-//! run on the CPU with candle, from the weights file `matedit.nets.save` writes: the
+//! run on the CPU (matrix products by matrixmultiply), from the weights file `matedit.nets.save` writes: the
 //! binary predicts without Python.
 //!
 //! ```no_run
@@ -18,19 +18,19 @@
 //! image normalised over that mask. The light is returned in the image's units (times s).
 
 mod layers;
+mod planes;
 mod weights;
 
 use std::path::Path;
 
-use candle_core::{D, DType, Device, Tensor};
-
 use crate::envmap::{Convention, EnvMap};
-use crate::error::{Error, Result, invalid};
+use crate::error::{Result, invalid};
 use crate::material::{Material, N_COEFS, N_PARAMS};
 use crate::normals::NormalMap;
 use crate::scene::Image;
 use crate::spline::N_CTRL_POINTS;
 use layers::{GlobalNet, NormalsNet};
+use planes::{Planes, matmul};
 use weights::Weights;
 pub use weights::{FORMAT, NetsConfig};
 
@@ -49,7 +49,7 @@ pub struct Nets {
     normals: NormalsNet,
     material: GlobalNet,
     /// The basis presets' control points (K, 108), a buffer of the weights file.
-    presets: Tensor,
+    presets: Vec<f32>,
     light: GlobalNet,
 }
 
@@ -70,13 +70,6 @@ pub struct Prediction {
     pub material: Material,
     /// The image's scale s: the mean of max(I, 0) over the mask (1 for a black object).
     pub scale: f32,
-}
-
-/// A candle error inside the nets (sizes are checked before, so this is not expected).
-impl From<candle_core::Error> for Error {
-    fn from(e: candle_core::Error) -> Self {
-        invalid!("nets: {e}")
-    }
 }
 
 impl Nets {
@@ -163,45 +156,38 @@ impl Nets {
                 w * h
             ));
         }
-        let img = Tensor::from_slice(image.pixels.as_flattened(), (1, h, w, 3), &Device::Cpu)?;
         let (mask, first_prob) = match mask {
             Some(m) => (m.to_vec(), None),
             None => {
                 let all = vec![true; w * h];
-                let (_, logits) = self.normals.forward(&prepare(image, &img, &all)?.0)?;
-                let logits = logits.flatten_all()?.to_vec1::<f32>()?;
+                let (_, logits) = self.normals.forward(&prepare(image, &all).0);
                 let m = logits.iter().map(|&l| l > 0.0).collect();
-                (m, Some(logits.iter().map(|&l| sigmoid(l)).collect()))
+                (m, Some(logits.into_iter().map(sigmoid).collect()))
             }
         };
-        let (x, s) = prepare(image, &img, &mask)?;
-        let m = Tensor::from_iter(mask.iter().map(|&b| f32::from(u8::from(b))), &Device::Cpu)?
-            .reshape((1, 1, h, w))?;
-        let (n, logits) = self.normals.forward(&x)?;
+        let (x, s) = prepare(image, &mask);
+        let m = Planes::new(
+            1,
+            h,
+            w,
+            mask.iter().map(|&b| f32::from(u8::from(b))).collect(),
+        );
+        let (n, logits) = self.normals.forward(&x);
         let mask_prob = match first_prob {
             Some(p) => p,
-            None => logits
-                .flatten_all()?
-                .to_vec1::<f32>()?
-                .into_iter()
-                .map(sigmoid)
-                .collect(),
+            None => logits.into_iter().map(sigmoid).collect(),
         };
 
-        let n = n.flatten_to(2)?.to_vec2::<f32>()?;
         let normals = n
             .iter()
             .zip(&mask)
-            .map(|(v, &on)| if on { [v[0], v[1], v[2]] } else { [0.0; 3] })
+            .map(|(&v, &on)| if on { v } else { [0.0; 3] })
             .collect();
         let normals = NormalMap::new(w, h, normals)?;
 
         // MaterialNet: softmax(logits) @ presets, exponents clamped to [0, 1e4]
-        let weights = candle_softmax(&self.material.forward(&x, &m)?)?;
-        let ctrl = weights
-            .matmul(&self.presets)?
-            .flatten_all()?
-            .to_vec1::<f32>()?;
+        let weights = softmax(&self.material.forward(&x, &m));
+        let ctrl = matmul(&weights, false, &self.presets, 1, self.cfg.basis, N_PARAMS);
         let ctrl: Vec<f64> = ctrl
             .iter()
             .enumerate()
@@ -217,11 +203,7 @@ impl Nets {
         let material = Material::new("predicted", &ctrl)?;
 
         // LightNet: exp of its output clamped to [-20, 20], times s
-        let log_env = self
-            .light
-            .forward(&x, &m)?
-            .flatten_all()?
-            .to_vec1::<f32>()?;
+        let log_env = self.light.forward(&x, &m);
         let texels = log_env
             .chunks_exact(3)
             .map(|c| [c[0], c[1], c[2]].map(|v| v.clamp(-20.0, 20.0).exp() * s))
@@ -247,15 +229,17 @@ fn sigmoid(x: f32) -> f32 {
     1.0 / (1.0 + (-x).exp())
 }
 
-/// softmax over the last dimension.
-fn candle_softmax(x: &Tensor) -> candle_core::Result<Tensor> {
-    let e = x.broadcast_sub(&x.max_keepdim(D::Minus1)?)?.exp()?;
-    e.broadcast_div(&e.sum_keepdim(D::Minus1)?)
+/// softmax of a vector.
+fn softmax(x: &[f32]) -> Vec<f32> {
+    let max = x.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+    let e: Vec<f32> = x.iter().map(|&v| (v - max).exp()).collect();
+    let sum: f32 = e.iter().sum();
+    e.into_iter().map(|v| v / sum).collect()
 }
 
-/// model.py's `prepare`: slog(I / s) as (1, 3, H, W), and s = the mean of max(I, 0) over
-/// `mask` (1 where that is 0). `img` is `image` as a (1, H, W, 3) tensor.
-fn prepare(image: &Image, img: &Tensor, mask: &[bool]) -> Result<(Tensor, f32)> {
+/// model.py's `prepare`: slog(I / s) as 3 planes, and s = the mean of max(I, 0) over
+/// `mask` (1 where that is 0).
+fn prepare(image: &Image, mask: &[bool]) -> (Planes, f32) {
     let (mut sum, mut count) = (0f64, 0usize);
     for (p, _) in image.pixels.iter().zip(mask).filter(|(_, on)| **on) {
         sum += p.iter().map(|&v| f64::from(v.max(0.0))).sum::<f64>();
@@ -263,12 +247,19 @@ fn prepare(image: &Image, img: &Tensor, mask: &[bool]) -> Result<(Tensor, f32)> 
     }
     let s = (sum / (3 * count.max(1)) as f64) as f32;
     let s = if s > 0.0 { s } else { 1.0 };
-    let x = (img / f64::from(s))?;
-    let slog = (x.sign()? * x.abs()?.affine(1.0, 1.0)?.log()?)?;
-    Ok((
-        slog.permute((0, 3, 1, 2))?
-            .contiguous()?
-            .to_dtype(DType::F32)?,
-        s,
-    ))
+    let inv = (1.0 / f64::from(s)) as f32;
+    let n = image.pixels.len();
+    let mut v = vec![0f32; 3 * n];
+    for (i, p) in image.pixels.iter().enumerate() {
+        for (ch, &c) in p.iter().enumerate() {
+            // sign(x) log(1 + |x|), 0 at 0
+            let x = c * inv;
+            v[ch * n + i] = if x == 0.0 {
+                0.0
+            } else {
+                x.signum() * x.abs().ln_1p()
+            };
+        }
+    }
+    (Planes::new(3, image.height, image.width, v), s)
 }

@@ -4,7 +4,6 @@
 use std::collections::{BTreeSet, HashMap};
 use std::path::{Path, PathBuf};
 
-use candle_core::{DType, Device, Tensor};
 use safetensors::SafeTensors;
 use serde::Deserialize;
 
@@ -60,7 +59,7 @@ impl Default for NetsConfig {
 /// [`Weights::finish`] refuses tensors nobody took.
 pub(super) struct Weights {
     path: PathBuf,
-    tensors: HashMap<String, (Vec<usize>, Tensor)>,
+    tensors: HashMap<String, (Vec<usize>, Vec<f32>)>,
     taken: BTreeSet<String>,
 }
 
@@ -118,15 +117,26 @@ impl Weights {
             .map_err(|e| bad(format!("not a safetensors file ({e})")))?;
         let mut tensors = HashMap::new();
         for (name, view) in st.tensors() {
-            let dtype = match view.dtype() {
-                safetensors::Dtype::F32 => DType::F32,
-                safetensors::Dtype::F64 => DType::F64,
+            // little-endian values, as safetensors stores them
+            let d = view.data();
+            let t: Vec<f32> = match view.dtype() {
+                safetensors::Dtype::F32 => d
+                    .chunks_exact(4)
+                    .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+                    .collect(),
+                safetensors::Dtype::F64 => d
+                    .chunks_exact(8)
+                    .map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes")) as f32)
+                    .collect(),
                 d => return Err(bad(format!("tensor {name}: dtype {d:?}, expected F32"))),
             };
             let shape = view.shape().to_vec();
-            let t = Tensor::from_raw_buffer(view.data(), dtype, &shape, &Device::Cpu)
-                .and_then(|t| t.to_dtype(DType::F32))
-                .map_err(|e| bad(format!("tensor {name}: {e}")))?;
+            if t.len() != shape.iter().product::<usize>() {
+                return Err(bad(format!(
+                    "tensor {name}: {} values for shape {shape:?}",
+                    t.len()
+                )));
+            }
             tensors.insert(name, (shape, t));
         }
         let w = Weights {
@@ -137,8 +147,8 @@ impl Weights {
         Ok((cfg, w))
     }
 
-    /// The tensor `name`, which must have `shape`.
-    pub(super) fn take(&mut self, name: &str, shape: &[usize]) -> Result<Tensor> {
+    /// The values of tensor `name` (row-major), which must have `shape`.
+    pub(super) fn take(&mut self, name: &str, shape: &[usize]) -> Result<Vec<f32>> {
         let Some((have, t)) = self.tensors.get(name) else {
             return Err(self.error(format!("tensor {name} is missing (shape {shape:?})")));
         };
