@@ -277,8 +277,9 @@ fn encode_outputs(
 ) -> Result<Vec<(String, Vec<u8>)>, Failure> {
     let preview = Preview::default();
     let crop_mask: Vec<bool> = d.normals.normals.iter().map(|n| n != &[0.0; 3]).collect();
-    // the edit's encoding runs on one thread: the sphere renders beside it
-    let (edit_file, sphere) = rayon::join(
+    // the edit's encoding runs on one thread; the sphere, the comparison strip, the normals
+    // and the mask beside it
+    let (edit_file, others) = rayon::join(
         || -> Result<_, Failure> {
             Ok(match kind {
                 Format::Jpeg => ("edit.jpg", encode_jpeg(edit)?),
@@ -292,18 +293,21 @@ fn encode_outputs(
         || -> Result<_, Failure> {
             let sky = matedit::builtin_sky::procedural_env(32, 64, Convention::Equirect);
             let renderer = Renderer::new(Device::Cpu)?;
-            Ok(renderer
+            let sphere = renderer
                 .render(&matedit::Batch::single(matedit::Scene {
                     normals: NormalMap::sphere(128),
                     env: sky,
                     material: d.material.clone(),
                     camera: matedit::Camera::Orthographic,
                 })?)?
-                .remove(0))
+                .remove(0);
+            let compare = compare_strip(photo, edit, &d.normals, &crop_mask, &sphere, &preview)?;
+            let normals = io::png::encode_normals(&d.normals, &crop_mask)?;
+            let mask = io::png::encode_mask(d.width, d.height, &d.mask)?;
+            Ok((sphere, compare, normals, mask))
         },
     );
-    let (edit_file, sphere) = (edit_file?, sphere?);
-    let compare = compare_strip(photo, edit, &d.normals, &crop_mask, &sphere, &preview);
+    let (edit_file, (sphere, compare, normals, mask)) = (edit_file?, others?);
     let description = format!(
         "the material of matedit edit {} ({})",
         args.photo.display(),
@@ -311,14 +315,8 @@ fn encode_outputs(
     );
     Ok(vec![
         (edit_file.0.to_string(), edit_file.1),
-        (
-            "normals.png".into(),
-            io::png::encode_normals(&d.normals, &crop_mask)?,
-        ),
-        (
-            "mask.png".into(),
-            io::png::encode_mask(d.width, d.height, &d.mask)?,
-        ),
+        ("normals.png".into(), normals),
+        ("mask.png".into(), mask),
         (
             "light.exr".into(),
             io::exr::encode_rgb(d.env.width, d.env.height, &d.env.texels)?,
@@ -331,7 +329,7 @@ fn encode_outputs(
             "sphere.png".into(),
             io::png::encode_preview(&sphere, &preview)?,
         ),
-        ("compare.png".into(), compare?),
+        ("compare.png".into(), compare),
     ])
 }
 

@@ -73,8 +73,12 @@ pub fn display_value(v: f32, preview: &Preview) -> u8 {
 
 /// `v` after the exposure and the tonemap, in [0, 1].
 fn tonemapped(v: f32, preview: &Preview) -> f32 {
-    let x = v * preview.exposure.exp2();
-    let y = match preview.tonemap {
+    tonemapped_scaled(v * preview.exposure.exp2(), preview.tonemap)
+}
+
+/// [`tonemapped`] of `v` whose exposure `x = v 2^exposure` is given.
+fn tonemapped_scaled(x: f32, tonemap: Tonemap) -> f32 {
+    let y = match tonemap {
         Tonemap::Clamp => x,
         Tonemap::Reinhard => x / (1.0 + x),
     };
@@ -113,18 +117,42 @@ pub fn encode_preview(image: &Image, preview: &Preview) -> Result<Vec<u8>> {
     encode_rgb8(image.width, image.height, &display_bytes(image, preview))
 }
 
+/// Buckets of [`code_start`]: [0, 1] cut into this many equal parts.
+const CODE_BUCKETS: usize = 4096;
+
+/// The code of each bucket's lower end: the code of a value in bucket i is at least
+/// `code_start()[i]`, and one or two steps of [`code_steps`] more at most (the steepest part
+/// of the sRGB curve, near 0, spans 0.8 codes a bucket).
+fn code_start() -> &'static [u8; CODE_BUCKETS + 1] {
+    static START: std::sync::OnceLock<[u8; CODE_BUCKETS + 1]> = std::sync::OnceLock::new();
+    START.get_or_init(|| {
+        let steps = code_steps();
+        std::array::from_fn(|i| {
+            let lo = i as f32 / CODE_BUCKETS as f32;
+            steps.partition_point(|&t| t <= lo) as u8
+        })
+    })
+}
+
 /// The 8-bit display values of a linear image's pixels, 3 bytes a pixel (rows in
 /// parallel: a 12-megapixel photo has 36 million values).
 pub fn display_bytes(image: &Image, preview: &Preview) -> Vec<u8> {
     let mut out = vec![0u8; 3 * image.pixels.len()];
     let row = 3 * image.width.max(1);
+    let scale = preview.exposure.exp2();
     out.par_chunks_mut(row)
         .zip(image.pixels.par_chunks(image.width.max(1)))
         .for_each(|(o, p)| {
-            // the code is how many steps the value reaches: no powf per value
-            let steps = code_steps();
+            // the code is how many steps the value reaches, found from its bucket's first
+            // code: no powf and no search per value
+            let (steps, start) = (code_steps(), code_start());
             for (o, v) in o.iter_mut().zip(p.iter().flatten()) {
-                *o = steps.partition_point(|&t| t <= tonemapped(*v, preview)) as u8;
+                let y = tonemapped_scaled(*v * scale, preview.tonemap);
+                let mut c = usize::from(start[(y * CODE_BUCKETS as f32) as usize]);
+                while c < steps.len() && steps[c] <= y {
+                    c += 1;
+                }
+                *o = c as u8;
             }
         });
     out
