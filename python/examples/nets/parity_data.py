@@ -109,7 +109,7 @@ def main() -> None:
         "square": (image(rng, 16, 16), None),
         "wide_masked": (image(rng, 12, 20), disc(12, 20)),
         # a black object (s = 1); not an all-black image: with every input 0, group norm
-        # divides rounding noise by sqrt(eps), and PyTorch and candle round differently
+        # divides rounding noise by sqrt(eps), and PyTorch and the Rust nets round differently
         "black": (image(rng, 8, 10) * ~disc(8, 10)[..., None], disc(8, 10)),
     }
     data = predictions(nets, cases)
