@@ -4,7 +4,7 @@
 //! of its process through a global allocator, and `tests/shapes_files.rs` is run again with
 //! the `gltf` feature, which would otherwise rebuild all of these.
 //!
-//! `cargo test --test it MODULE::` runs one area, e.g. `cargo test --test it gpu_vs_reference::`.
+//! `cargo test --test it MODULE::` runs one area, e.g. `cargo test --test it backends::`.
 
 mod common;
 mod http;
@@ -15,6 +15,7 @@ mod cli;
 mod cli_env;
 mod cli_normals;
 // the layer on each backend against the f64 reference, and its gradients
+mod backends;
 mod cpu_math;
 mod cpu_vs_reference;
 mod gpu_bindings;

@@ -2,7 +2,8 @@
 //! (the dispatch's y dimension), added in slice order by reduce_slices; and the dispatches
 //! and timings that follow the plan.
 
-use super::{compare_on, output_bits, sphere_scene};
+use super::{compare_on, output_bits};
+use crate::backends::sphere_scene;
 use crate::common::{Rng, gpu, random_scene, scenes, upstream_for};
 use matedit::gpu::Tiles;
 use matedit::prepare::Prepared;

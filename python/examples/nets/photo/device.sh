@@ -49,7 +49,7 @@ synth train.json /tmp/ds ${SHARDS:-12}
 
 # the GPU tests meanwhile (the names as .ci/run reruns them)
 if [ -x /tmp/dev/it ]; then
-    MATEDIT_REQUIRE_GPU=1 timeout ${TEST_SECONDS:-150} /tmp/dev/it gpu every_backend_gives_the_references_corrections \
+    MATEDIT_REQUIRE_GPU=1 timeout ${TEST_SECONDS:-150} /tmp/dev/it gpu backends:: every_backend_gives_the_references_corrections \
         --test-threads 4 >"$out/gpu_tests.log" 2>&1
     stamp "GPU tests: exit $? ($(grep -c '\.\.\. ok' "$out/gpu_tests.log") ok, $(grep -c 'FAILED\|panicked' "$out/gpu_tests.log") failed)"
 fi

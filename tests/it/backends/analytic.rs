@@ -1,39 +1,41 @@
-//! Analytic values on both backends: a constant light with a lobe of exponent 0, and one
-//! lobe against quadrature.
+//! Analytic values on the reference and every backend: a constant light with a lobe of
+//! exponent 0, and one lobe against quadrature.
 
-use crate::common::{assert_close, flat32, gpu};
+use super::backends;
+use crate::common::{assert_close, flat32};
 use matedit::prepare::Prepared;
-use matedit::{Backend, Batch, Camera, Convention, EnvMap, Material, NormalMap, Scene, reference};
+use matedit::{Batch, Camera, Convention, EnvMap, Material, NormalMap, Scene, reference};
 
 /// Constant light L = 1 and one lobe of exponent 0: f = e^m0 - 1 everywhere, so
 /// I = (e^m0 - 1) sum_i max(0, n.w_i) d_omega_i, which is pi (e^m0 - 1) in the limit;
-/// within 0.1% at 64 x 128 equirect.
-fn constant_light_scene() -> (Scene, f64) {
+/// within 0.1% at 64 x 128 equirect, for a normal facing the camera and at the centre of a
+/// 16 x 16 sphere.
+#[test]
+fn constant_light_exponent_zero() {
     let m0: f64 = 0.7;
-    let scene = Scene {
-        normals: NormalMap::new(1, 1, vec![[0.0, 0.0, 1.0]]).unwrap(),
+    let want = std::f64::consts::PI * m0.exp_m1();
+    let scene = |normals: NormalMap| Scene {
+        normals,
         env: EnvMap::constant(64, 128, Convention::Equirect, [1.0; 3]).unwrap(),
         material: Material::constant("flat", [(m0, 0.0), (0.0, 0.0), (0.0, 0.0)]).unwrap(),
         camera: Camera::Orthographic,
     };
-    (scene, std::f64::consts::PI * m0.exp_m1())
-}
-
-#[test]
-fn analytic_constant_light_exponent_zero_cpu() {
-    let (scene, want) = constant_light_scene();
-    let img = reference::forward(&Prepared::new(&scene));
-    assert_close("I (cpu)", &img[0], &[want; 3], 0.0, 1e-3);
-}
-
-#[test]
-fn analytic_constant_light_exponent_zero_gpu() {
-    let Some(g) = gpu("analytic_constant_light_exponent_zero_gpu") else {
-        return;
-    };
-    let (scene, want) = constant_light_scene();
-    let img = g.render((&Batch::single(scene).unwrap()).into()).unwrap();
-    assert_close("I (gpu)", &flat32(&img[0].pixels), &[want; 3], 0.0, 1e-3);
+    let facing = scene(NormalMap::new(1, 1, vec![[0.0, 0.0, 1.0]]).unwrap());
+    let img = reference::forward(&Prepared::new(&facing));
+    assert_close("I (reference)", &img[0], &[want; 3], 0.0, 1e-3);
+    let facing = Batch::single(facing).unwrap();
+    let sphere = Batch::single(scene(NormalMap::sphere(16))).unwrap();
+    for u in backends("constant_light_exponent_zero") {
+        let img = u.backend.render((&facing).into()).unwrap();
+        let what = format!("I ({})", u.name);
+        assert_close(&what, &flat32(&img[0].pixels), &[want; 3], 0.0, 1e-3);
+        let img = u.backend.render((&sphere).into()).unwrap();
+        let centre = f64::from(img[0].pixels[8 * 16 + 8][0]);
+        assert!(
+            (centre / want - 1.0).abs() < 1e-3,
+            "{what}, sphere centre: {centre} vs {want}"
+        );
+    }
 }
 
 /// One lobe (kappa, gamma constant over theta_d) under L = 1 seen along its normal:
@@ -62,27 +64,22 @@ fn one_lobe_scene(kappa: f64, gamma: f64, hl: usize) -> Scene {
 }
 
 #[test]
-fn analytic_one_lobe_against_quadrature() {
+fn one_lobe_against_quadrature() {
     let (kappa, gamma) = (1.5, 8.0);
     let want = one_lobe_quadrature(kappa, gamma);
     // 64 x 128: the midpoint rule over texels is within 0.2%; at 256 x 512 within 0.02%
     for (hl, rel) in [(64, 2e-3), (256, 2e-4)] {
         let img = reference::forward(&Prepared::new(&one_lobe_scene(kappa, gamma, hl)));
-        assert_close(
-            &format!("one lobe cpu {hl}"),
-            &[img[0][0]],
-            &[want],
-            0.0,
-            rel,
-        );
+        let what = format!("one lobe reference {hl}");
+        assert_close(&what, &[img[0][0]], &[want], 0.0, rel);
     }
-    if let Some(g) = gpu("analytic_one_lobe_against_quadrature") {
-        let img = g
-            .render((&Batch::single(one_lobe_scene(kappa, gamma, 64)).unwrap()).into())
-            .unwrap();
+    let batch = Batch::single(one_lobe_scene(kappa, gamma, 64)).unwrap();
+    for u in backends("one_lobe_against_quadrature") {
+        let img = u.backend.render((&batch).into()).unwrap();
+        let got = f64::from(img[0].pixels[0][0]);
         assert_close(
-            "one lobe gpu 64",
-            &[img[0].pixels[0][0] as f64],
+            &format!("one lobe {} 64", u.name),
+            &[got],
             &[want],
             0.0,
             2e-3,
