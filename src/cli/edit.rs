@@ -71,7 +71,8 @@ pub struct Args {
     /// 0 the re-rendered object alone.
     #[arg(long, value_name = "D", default_value_t = PhotoOptions::default().detail, value_parser = parse_detail)]
     detail: f32,
-    /// Keep the nets' light level instead of the background's (docs/edit.md).
+    /// Keep the nets' light level instead of the background's, or on black a grey card's
+    /// exposure (docs/edit.md).
     #[arg(long)]
     no_background_light: bool,
     /// The nets' predictions as they are, without refinement.

@@ -75,8 +75,8 @@ pub struct PhotoOptions {
     /// when the material is the photo's own), 0 the re-rendered object alone
     /// ([`composite`](mod@composite)).
     pub detail: f32,
-    /// The predicted light takes the background's mean radiance before the refinement
-    /// ([`light`]).
+    /// The predicted light takes the background's mean radiance before the refinement, or
+    /// on black a grey card's exposure ([`light`]); false keeps the nets' level.
     pub background_light: bool,
 }
 
