@@ -498,6 +498,7 @@ function selectPreset(name) {
 
 function buildGallery(presets) {
   const gallery = $("gallery");
+  const spheres = [];
   gallery.replaceChildren(...presets.map((name) => {
     const b = document.createElement("button");
     b.className = "preset";
@@ -505,14 +506,30 @@ function buildGallery(presets) {
     b.dataset.preset = name;
     b.title = name;
     const img = document.createElement("img");
-    img.loading = "lazy";
     img.alt = "";
-    img.src = presetUrl(name, "sphere.png");
+    img.dataset.src = presetUrl(name, "sphere.png");
+    spheres.push(img);
     const span = document.createElement("span");
     span.textContent = name;
     b.append(img, span);
     return b;
   }));
+  loadInTurn(spheres);
+}
+
+// Pictures one after another: the server renders each sphere on first request, and all
+// at once they held the browser's six connections to it, so that a photo's own requests
+// waited behind the gallery.
+function loadInTurn(imgs) {
+  let i = 0;
+  const next = () => {
+    if (i >= imgs.length) return;
+    const img = imgs[i++];
+    img.addEventListener("load", next, { once: true });
+    img.addEventListener("error", next, { once: true });
+    img.src = img.dataset.src;
+  };
+  next();
 }
 
 // "material from another photo": decompose it, then use its material

@@ -93,6 +93,17 @@ async fn preset_file(
             let png = match cached {
                 Some(p) => p,
                 None => {
+                    let _permit = app.sphere_renders.acquire().await.map_err(|_| {
+                        ApiError(
+                            StatusCode::SERVICE_UNAVAILABLE,
+                            "the server is stopping".into(),
+                        )
+                    })?;
+                    // rendered while this request waited
+                    let cached = app.spheres.lock().map_err(poisoned)?.get(&name).cloned();
+                    if let Some(p) = cached {
+                        return Ok(sphere_response(p.as_ref().clone()));
+                    }
                     let a = app.clone();
                     let p = Arc::new(
                         blocking(move || work::sphere_png(&a.renderer, &material)).await??,
@@ -104,20 +115,25 @@ async fn preset_file(
                     p
                 }
             };
-            Ok((
-                [
-                    (header::CONTENT_TYPE, "image/png"),
-                    (header::CACHE_CONTROL, "max-age=3600"),
-                ],
-                png.as_ref().clone(),
-            )
-                .into_response())
+            Ok(sphere_response(png.as_ref().clone()))
         }
         _ => Err(ApiError(
             StatusCode::NOT_FOUND,
             format!("no file '{file}' for a preset"),
         )),
     }
+}
+
+/// A preset's sphere picture, which the browser may keep for an hour.
+fn sphere_response(png: Vec<u8>) -> Response {
+    (
+        [
+            (header::CONTENT_TYPE, "image/png"),
+            (header::CACHE_CONTROL, "max-age=3600"),
+        ],
+        png,
+    )
+        .into_response()
 }
 
 /// `POST /api/photos`: a photo as the body (its name in `x-filename`), decoded within the
