@@ -99,41 +99,39 @@ async fn preset_file(
                             "the server is stopping".into(),
                         )
                     })?;
-                    // rendered while this request waited
+                    // it may have been rendered while this request waited
                     let cached = app.spheres.lock().map_err(poisoned)?.get(&name).cloned();
-                    if let Some(p) = cached {
-                        return Ok(sphere_response(p.as_ref().clone()));
+                    match cached {
+                        Some(p) => p,
+                        None => {
+                            let a = app.clone();
+                            let p = Arc::new(
+                                blocking(move || work::sphere_png(&a.renderer, &material))
+                                    .await??,
+                            );
+                            app.spheres
+                                .lock()
+                                .map_err(poisoned)?
+                                .insert(name, p.clone());
+                            p
+                        }
                     }
-                    let a = app.clone();
-                    let p = Arc::new(
-                        blocking(move || work::sphere_png(&a.renderer, &material)).await??,
-                    );
-                    app.spheres
-                        .lock()
-                        .map_err(poisoned)?
-                        .insert(name, p.clone());
-                    p
                 }
             };
-            Ok(sphere_response(png.as_ref().clone()))
+            Ok((
+                [
+                    (header::CONTENT_TYPE, "image/png"),
+                    (header::CACHE_CONTROL, "max-age=3600"),
+                ],
+                png.as_ref().clone(),
+            )
+                .into_response())
         }
         _ => Err(ApiError(
             StatusCode::NOT_FOUND,
             format!("no file '{file}' for a preset"),
         )),
     }
-}
-
-/// A preset's sphere picture, which the browser may keep for an hour.
-fn sphere_response(png: Vec<u8>) -> Response {
-    (
-        [
-            (header::CONTENT_TYPE, "image/png"),
-            (header::CACHE_CONTROL, "max-age=3600"),
-        ],
-        png,
-    )
-        .into_response()
 }
 
 /// `POST /api/photos`: a photo as the body (its name in `x-filename`), decoded within the

@@ -16,6 +16,7 @@
 
 use rayon::prelude::*;
 
+use crate::envgen::colour::luminance;
 use crate::{EnvMap, Image};
 
 /// The light's mean radiance over the background's mean radiance. The frame shows little
@@ -77,10 +78,6 @@ fn scale(env: &mut EnvMap, factors: [f64; 3]) {
             t[k] = (f64::from(t[k]) * factors[k]) as f32;
         }
     }
-}
-
-fn luminance(c: [f64; 3]) -> f64 {
-    0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]
 }
 
 /// Sums of the pixels off and on the object, and their counts.
