@@ -186,6 +186,26 @@ def test_resident_mode_trains_resumes_and_follows(dataset, tmp_path):
         train.load_config(write_config(dataset, "bad_amp", amp="fp8"))
 
 
+def test_render_loss_on_either_layer_and_drawn_pixels(dataset):
+    # the torch layer's rendering losses are the Rust layer's; on drawn pixels they are
+    # finite, and a run with them learns
+    held = data.Resident(dataset / "train")
+    batch = held.batch(4, torch.Generator().manual_seed(2))
+    cfgs = {layer: train.load_config(write_config(dataset, f"render_{layer}", render_loss=True, layer=layer))
+            for layer in ("rust", "torch")}
+    nets = Nets(NetsConfig(width=8, levels=2, env_height=8, env_width=16))
+    parts = {k: train.losses(nets, batch, c, train.sphere_renderer(c, torch.device("cpu"))) for k, c in cfgs.items()}
+    for k in ("render", "edit"):
+        assert parts["torch"][k].item() == pytest.approx(parts["rust"][k].item(), rel=1e-4), k
+    path = write_config(dataset, "render_drawn", steps=40, resident=True, render_loss=True, layer="torch", render_pixels=32)
+    res = train.train(train.load_config(path), dataset / "runs" / "render_drawn", quiet=True)
+    assert all(math.isfinite(r["render"]) and math.isfinite(r["edit"]) for r in res["history"])
+    totals = [r["total"] for r in res["history"]]
+    assert np.mean(totals[-10:]) < 0.8 * np.mean(totals[:5]), totals
+    with pytest.raises(ValueError, match="render_pixels = -1"):
+        train.load_config(write_config(dataset, "bad_pixels", render_pixels=-1))
+
+
 def test_init_starts_from_weights(dataset):
     first = dataset / "runs" / "first"
     train.train(train.load_config(write_config(dataset, "first", steps=3)), first, quiet=True)

@@ -24,7 +24,10 @@ slog = sign log(1 + |x|) of the normalised image, see model.py):
 - light: L1 between log(L' + 1e-3) and log(L / s + 1e-3), L / s the light in the image's
   normalised units;
 - with `render_loss`: I' = R(n', m', L') against the image I / s, and O' = R(n', m_t, L')
-  against O = R(n, m_t, L / s) with m_t the material of the next sample in the batch, L1.
+  against O = R(n, m_t, L / s) with m_t the material of the next sample in the batch, L1;
+  R is the configured `layer` (both orthographic), over the whole mask or over
+  `render_pixels` pixels of it drawn at random (the layer renders each pixel on its own,
+  so a drawn pixel's value is that of the whole image's render).
 """
 
 from __future__ import annotations
@@ -71,6 +74,7 @@ DEFAULTS = {
     "render_loss": False,
     "w_render": 1.0,  # I' against I
     "w_edit": 1.0,  # O' against O
+    "render_pixels": 0,  # the rendering losses on this many pixels of each sample's mask, drawn anew each step (0: all)
     "seed": 0,
     "threads": 2,  # torch.set_num_threads, and the layer's RAYON_NUM_THREADS unless set
     "workers": 0,  # DataLoader workers
@@ -127,6 +131,8 @@ def load_config(path) -> dict:
     for k, allowed in (("amp", ("", "bf16")), ("layer", ("rust", "torch"))):
         if cfg[k] not in allowed:
             raise ValueError(f"{path}: {k} = {cfg[k]!r}: expected one of {', '.join(map(repr, allowed))}")
+    if cfg["render_pixels"] < 0:
+        raise ValueError(f"{path}: render_pixels = {cfg['render_pixels']}: expected 0 (all) or more")
     if cfg["follow"] and not cfg["resident"]:
         raise ValueError(f"{path}: follow = {cfg['follow']} needs resident = True")
     if not (cfg["lr"] > 0 and math.isfinite(cfg["lr"])):
@@ -193,12 +199,29 @@ def losses(nets, batch: dict, cfg: dict, render_spheres) -> dict:
         "light": (torch.log(out["env"] + 1e-3) - torch.log(env_t + 1e-3)).abs().mean(),
     }
     if cfg["render_loss"]:
+        if cfg["layer"] == "torch":
+            from matedit.nets.layer import render
+        else:
+            def render(normals, env, ctrl):
+                return matedit.torch.render(normals, env, ctrl, device=dev)
+        n_true = batch["normals"]
+        if cfg["render_pixels"]:
+            # K pixels of each mask (with replacement) as a (B, 1, K) image; a mask without
+            # pixels draws anywhere and counts for nothing
+            w = mask.flatten(1).float() + 1e-12
+            pick = torch.multinomial(w, cfg["render_pixels"], replacement=True)
+
+            def take(x):
+                x = x.flatten(1, 2)
+                return torch.gather(x, 1, pick.view(*pick.shape, *[1] * (x.dim() - 2)).expand(-1, -1, *x.shape[2:]))[:, None]
+
+            n, n_true, target, mask = take(n), take(n_true), take(target), take(mask)
         n_seen = n * mask[..., None]
-        parts["render"] = log_l1(matedit.torch.render(n_seen, out["env"], out["ctrl"], device=dev), target, mask)
+        parts["render"] = log_l1(render(n_seen, out["env"], out["ctrl"]), target, mask)
         m_t = batch["ctrl"].roll(1, 0)
         with torch.no_grad():
-            o = matedit.torch.render(batch["normals"], env_t, m_t, device=dev)
-        parts["edit"] = log_l1(matedit.torch.render(n_seen, out["env"], m_t, device=dev), o, mask)
+            o = render(n_true * mask[..., None], env_t, m_t)
+        parts["edit"] = log_l1(render(n_seen, out["env"], m_t), o, mask)
     return parts
 
 

@@ -6,7 +6,7 @@
 # Made ready on the development machine (docs/nets.md, "Training on a GPU"):
 #   .dev/it.xz             the release test binary (cargo test --release --no-run --test it), stripped
 #   .dev/matedit.so.xz     the Python package's extension (maturin build --release), stripped
-#   .dev/data.tar.xz       photo/{train.json, meshes/train, envmaps}: the training spec's inputs
+#   .dev/data.tar.xz       photo/{meshes/train, envmaps}: the training spec's inputs
 #   .gl/*.deb              the Vulkan loader (the device's README)
 # (.dev/it.xz is optional: without it the GPU tests are skipped.)
 # Writes to $OUT: gpu_tests.log, runs.tar.xz (every run's log, run.json, losses.png) and
@@ -31,7 +31,7 @@ icd=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
 cp -r python/matedit/. /tmp/site/matedit/
 xz -dc .dev/matedit.so.xz >/tmp/site/matedit/_matedit.abi3.so
 tar -C /tmp/dev -xJf .dev/data.tar.xz
-cp python/examples/nets/photo/paper128.json /tmp/dev/photo/
+cp python/examples/nets/photo/{train,paper128}.json /tmp/dev/photo/
 export PYTHONPATH=/tmp/site PYTHONUNBUFFERED=1 PYTORCH_CUDA_ALLOC_CONF=expandable_segments:True
 nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader
 stamp "unpacked"
@@ -47,11 +47,11 @@ synth() {  # SPEC FOLDER SHARDS
 synth train.json /tmp/ds ${SHARDS:-12}
 [ "${PAPER_SHARDS:-0}" -gt 0 ] && synth paper128.json /tmp/ds_paper $PAPER_SHARDS
 
-# the GPU tests meanwhile (the names as .ci/run reruns them)
+# the GPU tests beside the training (the names as .ci/run reruns them)
 if [ -x /tmp/dev/it ]; then
-    MATEDIT_REQUIRE_GPU=1 timeout ${TEST_SECONDS:-150} /tmp/dev/it gpu backends:: every_backend_gives_the_references_corrections \
+    (MATEDIT_REQUIRE_GPU=1 timeout ${TEST_SECONDS:-240} /tmp/dev/it gpu backends:: every_backend_gives_the_references_corrections \
         --test-threads 4 >"$out/gpu_tests.log" 2>&1
-    stamp "GPU tests: exit $? ($(grep -c '\.\.\. ok' "$out/gpu_tests.log") ok, $(grep -c 'FAILED\|panicked' "$out/gpu_tests.log") failed)"
+     stamp "GPU tests: exit $? ($(grep -c '\.\.\. ok' "$out/gpu_tests.log") ok, $(grep -c 'FAILED\|panicked' "$out/gpu_tests.log") failed)") &
 fi
 folders=/tmp/ds
 [ "${PAPER_SHARDS:-0}" -gt 0 ] && folders="/tmp/ds /tmp/ds_paper"
