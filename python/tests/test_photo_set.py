@@ -1,4 +1,5 @@
-"""scripts/photo_set: evaluate.py's metrics on arrays whose answers are known, and the
+"""scripts/photo_set: evaluate.py's and like_family.py's metrics on arrays whose answers
+are known, and the
 committed photo-like scenes (tests/data/photo_set) and photos (tests/data/photos) hold the
 files and boxes their JSON promises. Needs neither Mitsuba nor a matedit binary."""
 
@@ -16,14 +17,29 @@ ROOT = Path(__file__).resolve().parents[2]
 SCENES = sorted(p.parent for p in (ROOT / "tests/data/photo_set").glob("*/meta.json"))
 
 
-def load_evaluate():
-    spec = importlib.util.spec_from_file_location("evaluate", ROOT / "scripts/photo_set/evaluate.py")
+def load_script(name):
+    spec = importlib.util.spec_from_file_location(name, ROOT / f"scripts/photo_set/{name}.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
 
 
-evaluate = load_evaluate()
+evaluate = load_script("evaluate")
+like_family = load_script("like_family")
+
+
+def test_lab_and_the_family_threshold():
+    lab = like_family.lab
+    assert lab(np.ones(3)) == pytest.approx([100, 0, 0], abs=1e-9)
+    assert lab(np.zeros(3)) == pytest.approx([0, 0, 0], abs=1e-9)
+    grey = lab(np.full(3, 0.18))
+    assert grey[0] == pytest.approx(49.5, abs=0.1) and abs(grey[1]) < 1e-9
+    far = lambda a, b: np.linalg.norm(lab(np.array(a)) - lab(np.array(b)))
+    # what the family must tell apart, and what it must not
+    assert far([0.03] * 3, [0.18] * 3) > like_family.FAMILY_DELTA_E  # black plastic as grey
+    assert far([1.0, 0.78, 0.34], [0.9, 0.85, 0.7]) > like_family.FAMILY_DELTA_E  # gold as cream
+    assert far([0.55, 0.04, 0.03], [0.5, 0.05, 0.04]) < like_family.FAMILY_DELTA_E  # a red a shade off
+    assert like_family.disc(4).sum() == 12
 
 
 def test_psnr_counts_only_the_masked_pixels():
