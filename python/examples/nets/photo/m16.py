@@ -5,6 +5,6 @@ from gpu import *  # noqa: F403 (the settings this folder's runs share)
 
 # half of each batch from each: matedit synth train.json -o data/train, paper128.json -o data/paper
 data = ["data/train", "data/paper"]
-init = "weights/a16.safetensors"
+init = "weights/a16.safetensors"  # git show 2efad6a:python/examples/nets/photo/weights/a16.safetensors > weights/a16.safetensors
 width = 16
 lr = 1e-3
