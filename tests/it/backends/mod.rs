@@ -32,10 +32,13 @@ pub(crate) struct Under {
 
 /// Every backend there is here: each CPU level, widest first (scalar is always there),
 /// then the GPU's (skipped, with a line on stderr, without an adapter unless
-/// MATEDIT_REQUIRE_GPU=1).
+/// MATEDIT_REQUIRE_GPU=1). With MATEDIT_TEST_BACKENDS=gpu, the GPU's alone: `.ci/run`'s
+/// second run of the GPU tests under another GPU plan, which changes nothing on the CPU.
 pub(crate) fn backends(test: &str) -> Vec<Under> {
+    let gpu_only = std::env::var("MATEDIT_TEST_BACKENDS").as_deref() == Ok("gpu");
     let mut out: Vec<Under> = SimdLevel::ALL
         .into_iter()
+        .filter(|_| !gpu_only)
         .filter_map(FastCpu::with_level)
         .map(|c| Under {
             name: format!("cpu {}", c.level().name()),
@@ -44,7 +47,7 @@ pub(crate) fn backends(test: &str) -> Vec<Under> {
             grad_tol: 1e-4,
         })
         .collect();
-    assert!(out.iter().any(|u| u.name == "cpu scalar"));
+    assert!(gpu_only || out.iter().any(|u| u.name == "cpu scalar"));
     if let Some(g) = gpu(test) {
         out.push(Under {
             name: "gpu".into(),
