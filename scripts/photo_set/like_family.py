@@ -34,7 +34,7 @@ import numpy as np
 from PIL import Image
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from make_set import SPLITS, SWATCHES, bsdf, luminance, render, save_png, swatch_dict, to_srgb8  # noqa: E402
+from make_set import SPLITS, SWATCHES, bsdf, render, save_png, swatch_dict, swatch_exposure_of, to_srgb8  # noqa: E402
 
 FAMILY_DELTA_E = 20.0
 SIDE = 128  # the swatch photos' size
@@ -68,10 +68,7 @@ def swatch(mi, material, envmap, seed, work):
     scene = {"seed": seed, "swatch_envmap": envmap, "swatch_envmap_yaw": float(seed * 47 % 360)}
     photo = render(mi, swatch_dict(mi, scene, SIDE, 64, bsdf(material)))
     mask = render(mi, swatch_dict(mi, scene, SIDE, 16, None))[..., 0] > 0.5
-    white = render(mi, swatch_dict(mi, scene, 32, 32, bsdf({"type": "diffuse", "reflectance": [1, 1, 1]})))
-    small = render(mi, swatch_dict(mi, scene, 32, 16, None))[..., 0] > 0.5
-    exposure = 0.5 / max(luminance(white)[small].mean(), 1e-6)
-    photo = to_srgb8(photo * exposure)
+    photo = to_srgb8(photo * swatch_exposure_of(mi, scene))
     save_png(photo_png, photo)
     save_png(mask_png, (mask * 255).astype(np.uint8))
     return photo, mask

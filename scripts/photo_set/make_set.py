@@ -453,6 +453,13 @@ def photo_exposure(image, mask):
     return min(0.18 / max(np.median(lum), 1e-6), 0.9 / max(np.percentile(lum[mask], 97), 1e-6))
 
 
+def swatch_exposure_of(mi, scene):
+    """The swatch is exposed as for a grey card: a white diffuse sphere there has mean 0.5."""
+    white = render(mi, swatch_dict(mi, scene, 32, 32, bsdf({"type": "diffuse", "reflectance": [1, 1, 1]})))
+    small_mask = render(mi, swatch_dict(mi, scene, 32, 16, None))[..., 0] > 0.5
+    return 0.5 / max(luminance(white)[small_mask].mean(), 1e-6)
+
+
 def bounding_box(mask):
     ys, xs = np.nonzero(mask)
     return [int(xs.min()), int(ys.min()), int(xs.max()) + 1, int(ys.max()) + 1]
@@ -477,10 +484,7 @@ def make_scene(mi, scene, size, spp, out, write_exr):
     side = min(width, height)
     swatch = render(mi, swatch_dict(mi, scene, side, spp, bsdf(scene["edit_material"])))
     swatch_mask = render(mi, swatch_dict(mi, scene, side, 16, None))[..., 0] > 0.5
-    # the swatch is exposed as for a grey card: a white diffuse sphere there has mean 0.5
-    white = render(mi, swatch_dict(mi, scene, 32, 32, bsdf({"type": "diffuse", "reflectance": [1, 1, 1]})))
-    small_mask = render(mi, swatch_dict(mi, scene, 32, 16, None))[..., 0] > 0.5
-    swatch_exposure = 0.5 / max(luminance(white)[small_mask].mean(), 1e-6)
+    swatch_exposure = swatch_exposure_of(mi, scene)
 
     save_png(os.path.join(out, "photo.png"), to_srgb8(photo * exposure))
     save_png(os.path.join(out, "mask.png"), (mask * 255).astype(np.uint8))

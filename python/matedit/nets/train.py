@@ -208,14 +208,9 @@ def losses(nets, batch: dict, cfg: dict, render_spheres) -> dict:
         if cfg["render_pixels"]:
             # K pixels of each mask (with replacement) as a (B, 1, K) image; a mask without
             # pixels draws anywhere and counts for nothing
-            w = mask.flatten(1).float() + 1e-12
-            pick = torch.multinomial(w, cfg["render_pixels"], replacement=True)
-
-            def take(x):
-                x = x.flatten(1, 2)
-                return torch.gather(x, 1, pick.view(*pick.shape, *[1] * (x.dim() - 2)).expand(-1, -1, *x.shape[2:]))[:, None]
-
-            n, n_true, target, mask = take(n), take(n_true), take(target), take(mask)
+            pick = torch.multinomial(mask.flatten(1).float() + 1e-12, cfg["render_pixels"], replacement=True)
+            rows = torch.arange(len(pick), device=pick.device)[:, None]
+            n, n_true, target, mask = (x.flatten(1, 2)[rows, pick][:, None] for x in (n, n_true, target, mask))
         n_seen = n * mask[..., None]
         parts["render"] = log_l1(render(n_seen, out["env"], out["ctrl"]), target, mask)
         m_t = batch["ctrl"].roll(1, 0)
