@@ -185,6 +185,7 @@ pub fn run(args: &Args) -> Result<(), Failure> {
         "psnr_refined_db": d.psnr_refined,
         "detail": d.detail,
         "light_factors": d.light_factors,
+        "light_factors_above": d.light_factors_above,
         "seconds": stages,
     });
     io::create_dirs(&args.output)?;

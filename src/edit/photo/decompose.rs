@@ -9,7 +9,7 @@ use super::composite::{RENDER_SIZE, render};
 use super::crop::{
     crop_around, crop_image, mask_image, paste_scalar, render_grid, upsample_normals,
 };
-use super::light::match_background;
+use super::light::{Factors, match_background};
 use super::pointing::segment_object;
 use super::refine::refine_normals;
 use super::{Decomposition, Object, PhotoOptions, Stage};
@@ -76,7 +76,7 @@ pub fn decompose<'a>(
     let light_factors = if options.background_light {
         match_background(&mut p.env, photo, mask)
     } else {
-        [1.0; 3]
+        Factors::ONE
     };
     let alpha = raster::blur3(mask, w, h);
     let normals = upsample_normals(&p.normals, crop, &crop_mask);
@@ -139,7 +139,8 @@ pub fn decompose<'a>(
         psnr_refined,
         losses,
         normal_losses,
-        light_factors,
+        light_factors: light_factors.below,
+        light_factors_above: light_factors.above,
         render_normals: NormalMap {
             width: 0,
             height: 0,
