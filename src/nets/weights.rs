@@ -96,7 +96,7 @@ impl Weights {
         if cfg.levels <= 16
             && (cfg.image_size == 0
                 || cfg.image_size > 1024
-                || cfg.image_size % (1 << (cfg.levels - 1)) != 0)
+                || !cfg.image_size.is_multiple_of(1 << (cfg.levels - 1)))
         {
             return Err(bad(format!(
                 "metadata config: image_size {} is not a multiple of 2^(levels - 1) in 1..=1024",
