@@ -184,8 +184,8 @@ pub fn run(args: &Args) -> Result<(), Failure> {
         "psnr_predicted_db": d.psnr_predicted,
         "psnr_refined_db": d.psnr_refined,
         "detail": d.detail,
-        "light_factors": d.light_factors,
-        "light_factors_above": d.light_factors_above,
+        "light_factors": d.light_factors.below,
+        "light_factors_above": d.light_factors.above,
         "seconds": stages,
     });
     io::create_dirs(&args.output)?;

@@ -443,7 +443,6 @@ pub fn scaled(d: &Decomposition, photo: &Image, f: usize) -> (Decomposition, Ima
         losses: Vec::new(),
         normal_losses: Vec::new(),
         light_factors: d.light_factors,
-        light_factors_above: d.light_factors_above,
         render_normals: NormalMap {
             width: 0,
             height: 0,

@@ -139,8 +139,7 @@ pub fn decompose<'a>(
         psnr_refined,
         losses,
         normal_losses,
-        light_factors: light_factors.below,
-        light_factors_above: light_factors.above,
+        light_factors,
         render_normals: NormalMap {
             width: 0,
             height: 0,

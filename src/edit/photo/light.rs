@@ -88,11 +88,12 @@ pub fn match_background(env: &mut EnvMap, photo: &Image, mask: &[bool]) -> Facto
     let obj = obj.map(|v| v / n_obj as f64);
     if n_bg == 0 || luminance(bg) < MIN_BACKGROUND * luminance(obj) {
         let f = (EXPOSED_LEVEL / luminance(mean)).clamp(1.0 / MAX_FACTOR, MAX_FACTOR);
-        scale(env, [f; 3]);
-        return Factors {
+        let factors = Factors {
             below: [f; 3],
             above: [f; 3],
         };
+        scale(env, &factors);
+        return factors;
     }
     let level = BACKGROUND_GAIN * luminance(bg).max(1e-6) / luminance(mean);
     // the background's colour against the light's, each at unit luminance
@@ -102,23 +103,26 @@ pub fn match_background(env: &mut EnvMap, photo: &Image, mask: &[bool]) -> Facto
     let factors = |power: f64| -> [f64; 3] {
         tint.map(|t| (level * t.powf(power)).clamp(1.0 / MAX_FACTOR, MAX_FACTOR))
     };
-    let (below, above) = (factors(1.0), factors(UPPER_COLOUR));
-    let w = env.width.max(1);
-    let h = env.height;
-    for (i, t) in env.texels.iter_mut().enumerate() {
-        // rows from +y (up) down: the first half is above the horizon
-        let f = if 2 * (i / w) < h { above } else { below };
-        for k in 0..3 {
-            t[k] = (f64::from(t[k]) * f[k]) as f32;
-        }
-    }
-    Factors { below, above }
+    let factors = Factors {
+        below: factors(1.0),
+        above: factors(UPPER_COLOUR),
+    };
+    scale(env, &factors);
+    factors
 }
 
-fn scale(env: &mut EnvMap, factors: [f64; 3]) {
-    for t in &mut env.texels {
+/// Multiplies each texel of `env` by its half's factors.
+fn scale(env: &mut EnvMap, factors: &Factors) {
+    let (w, h) = (env.width.max(1), env.height);
+    for (i, t) in env.texels.iter_mut().enumerate() {
+        // rows from +y (up) down: the first half is above the horizon
+        let f = if 2 * (i / w) < h {
+            factors.above
+        } else {
+            factors.below
+        };
         for k in 0..3 {
-            t[k] = (f64::from(t[k]) * factors[k]) as f32;
+            t[k] = (f64::from(t[k]) * f[k]) as f32;
         }
     }
 }

@@ -129,11 +129,10 @@ pub struct Decomposition {
     /// The normals' refinement's loss (data term and smoothness prior) at its start and
     /// after each step taken (empty without it).
     pub normal_losses: Vec<f64>,
-    /// The factors the predicted light was scaled by per channel below the horizon to take
-    /// the background's level and colour (ones where it was not: [`light`]) ...
-    pub light_factors: [f64; 3],
-    /// ... and above it.
-    pub light_factors_above: [f64; 3],
+    /// The factors the predicted light was scaled by per channel, below the horizon and
+    /// above it, to take the background's level and colour (ones where it was not:
+    /// [`light`]).
+    pub light_factors: light::Factors,
     /// The object's normals at the size edits render at (at most [`RENDER_SIZE`] a side,
     /// over the crop).
     pub render_normals: NormalMap,

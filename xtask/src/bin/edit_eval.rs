@@ -16,7 +16,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use matedit::edit::photo::{self, PhotoOptions};
+use matedit::edit::photo::{self, Object, PhotoOptions};
 use matedit::edit::psnr;
 use matedit::io::{json, npy};
 use matedit::nets::Nets;
@@ -131,7 +131,7 @@ fn main() {
                 &renderer,
                 &nets,
                 &s.image,
-                Some(&s.mask),
+                Object::Mask(&s.mask),
                 &options(0),
                 &mut |_| {},
             )
@@ -147,7 +147,7 @@ fn main() {
                 &renderer,
                 &nets,
                 &s.image,
-                Some(&s.mask),
+                Object::Mask(&s.mask),
                 &options(steps),
                 &mut |_| {},
             )
