@@ -65,6 +65,21 @@ impl GpuRenderer {
         if env_choice("MATEDIT_GPU_PLAN", &["auto", "large"])?.as_deref() == Some("large") {
             planner = planner.as_large_gpu();
         }
+        Self::planned(ctx, planner)
+    }
+
+    /// The same device planned as a large GPU whatever its adapter, as
+    /// `MATEDIT_GPU_PLAN=large` plans it: slices for [`plan::LARGE_GPU_RESIDENT`]
+    /// invocations, batches in one dispatch, workgroup tiles (the pipelines rebuilt for
+    /// them), so that a software adapter runs the paths a hardware GPU takes. A hardware
+    /// adapter is planned so already.
+    pub fn as_large_gpu(self) -> Result<Self> {
+        let planner = self.planner.clone().as_large_gpu();
+        Self::planned(self.ctx, planner)
+    }
+
+    /// A renderer on `ctx` following `planner` (`MATEDIT_GPU_TILES` may force the tiles).
+    fn planned(ctx: GpuContext, mut planner: Planner) -> Result<Self> {
         if let Some(t) = env_choice("MATEDIT_GPU_TILES", &["workgroup", "uniform"])? {
             planner.tiles = if t == "workgroup" {
                 Tiles::Workgroup

@@ -341,8 +341,8 @@ fn every_backend_gives_the_references_corrections() {
         rel(&reference.0, &layer)
     );
     let mut renderers = vec![("cpu", Renderer::new(Device::Cpu).unwrap())];
-    if let Some(g) = common::gpu("every_backend_gives_the_references_corrections") {
-        renderers.push(("gpu", Renderer::with_backend(Box::new(g))));
+    for (name, g) in common::gpus("every_backend_gives_the_references_corrections") {
+        renderers.push((name, Renderer::with_backend(Box::new(g))));
     }
     for (name, r) in &renderers {
         let (image, g) = run(r);

@@ -17,7 +17,7 @@ mod analytic;
 mod seeded;
 mod sharp;
 
-use crate::common::{Rng, Truth, gpu, random_scene, upstream_for};
+use crate::common::{Rng, Truth, gpus, random_scene, upstream_for};
 use matedit::cpu::{FastCpu, SimdLevel};
 use matedit::prepare::Prepared;
 use matedit::{Backend, Batch, Camera, Convention, NormalMap, Scene, Wanted};
@@ -31,14 +31,12 @@ pub(crate) struct Under {
 }
 
 /// Every backend there is here: each CPU level, widest first (scalar is always there),
-/// then the GPU's (skipped, with a line on stderr, without an adapter unless
-/// MATEDIT_REQUIRE_GPU=1). With MATEDIT_TEST_BACKENDS=gpu, the GPU's alone: `.ci/run`'s
-/// second run of the GPU tests under another GPU plan, which changes nothing on the CPU.
+/// then the GPU under each plan it runs ([`gpus`]: on lavapipe its own and a large GPU's;
+/// skipped, with a line on stderr, without an adapter unless MATEDIT_REQUIRE_GPU=1). The
+/// reference is computed once for all of them.
 pub(crate) fn backends(test: &str) -> Vec<Under> {
-    let gpu_only = std::env::var("MATEDIT_TEST_BACKENDS").as_deref() == Ok("gpu");
     let mut out: Vec<Under> = SimdLevel::ALL
         .into_iter()
-        .filter(|_| !gpu_only)
         .filter_map(FastCpu::with_level)
         .map(|c| Under {
             name: format!("cpu {}", c.level().name()),
@@ -47,10 +45,10 @@ pub(crate) fn backends(test: &str) -> Vec<Under> {
             grad_tol: 1e-4,
         })
         .collect();
-    assert!(gpu_only || out.iter().any(|u| u.name == "cpu scalar"));
-    if let Some(g) = gpu(test) {
+    assert!(out.iter().any(|u| u.name == "cpu scalar"));
+    for (name, g) in gpus(test) {
         out.push(Under {
-            name: "gpu".into(),
+            name: name.into(),
             backend: Box::new(g),
             image_tol: 1e-4,
             grad_tol: 1e-4,

@@ -123,6 +123,26 @@ pub fn gpu(test: &str) -> Option<matedit::gpu::GpuRenderer> {
     }
 }
 
+/// Every GPU plan this machine runs, named: the adapter's own and, on a software adapter
+/// (lavapipe), also a large GPU's (slices, batches in one dispatch, workgroup tiles), which
+/// a hardware adapter plans already. Empty as [`gpu`] is.
+pub fn gpus(test: &str) -> Vec<(&'static str, matedit::gpu::GpuRenderer)> {
+    let Some(g) = gpu(test) else {
+        return Vec::new();
+    };
+    // `Planner::as_large_gpu` plans as for hardware: a renderer planned so is not software
+    let large = g.planner().software;
+    let mut out = vec![("gpu", g)];
+    if large {
+        let g = gpu(test)
+            .expect("a second renderer on the adapter")
+            .as_large_gpu()
+            .expect("the large GPU's plan");
+        out.push(("gpu, a large GPU's plan", g));
+    }
+    out
+}
+
 /// Flattens RGB triples.
 pub fn flat32(v: &[[f32; 3]]) -> Vec<f64> {
     v.iter().flatten().map(|&x| x as f64).collect()
