@@ -160,45 +160,32 @@ impl<'a> Problem<'a> {
         self.clamp(p);
         let mut cost = self.cost(p);
         let mut lambda = 1e-3;
-        let mut jac = vec![0.0; n];
         let mut a = vec![0.0; n * n];
         let mut grad = vec![0.0; n];
         let mut trial = vec![0.0; n];
         let mut step = vec![0.0; n];
+        // the residuals and their Jacobian, a row each: every sample's, and after a sample
+        // below 0 its negativity residual (the model's row times sqrt_negative)
+        let mut rows: Vec<f64> = Vec::with_capacity(self.g_target.len() * n);
+        let mut residuals: Vec<f64> = Vec::with_capacity(self.g_target.len());
+        let mut jac = vec![0.0; n];
         let mut stalls = 0;
         for _ in 0..iterations {
-            a.fill(0.0);
-            grad.fill(0.0);
+            rows.clear();
+            residuals.clear();
             let ctrl = self.values(p);
             for i in 0..self.g_target.len() {
                 let f = self.model(i, &ctrl, Some(&mut jac));
                 let dg = self.sqrt_w[i] * g_prime(f, self.c);
-                let r = self.sqrt_w[i] * (g(f, self.c) - self.g_target[i]);
-                // the negativity residual has the model's Jacobian times sqrt_negative;
-                // both are accumulated, one with a scaled copy
-                let negative = f < 0.0;
-                if negative {
+                residuals.push(self.sqrt_w[i] * (g(f, self.c) - self.g_target[i]));
+                rows.extend(jac.iter().map(|v| v * dg));
+                if f < 0.0 {
                     let k = self.sqrt_negative;
-                    let rn = k * f;
-                    for (row, &jr) in jac.iter().enumerate() {
-                        grad[row] += k * jr * rn;
-                        let a_row = &mut a[row * n..row * n + row + 1];
-                        for (av, &jc) in a_row.iter_mut().zip(&jac[..=row]) {
-                            *av += k * k * jr * jc;
-                        }
-                    }
-                }
-                for v in jac.iter_mut() {
-                    *v *= dg;
-                }
-                for (row, &jr) in jac.iter().enumerate() {
-                    grad[row] += jr * r;
-                    let a_row = &mut a[row * n..row * n + row + 1];
-                    for (av, &jc) in a_row.iter_mut().zip(&jac[..=row]) {
-                        *av += jr * jc;
-                    }
+                    residuals.push(k * f);
+                    rows.extend(jac.iter().map(|v| v * k));
                 }
             }
+            normal_equations(&rows, &residuals, n, &mut a, &mut grad);
             let mut improved = false;
             for _ in 0..12 {
                 if !solve_damped(&a, &grad, lambda, n, &mut step) {
@@ -249,6 +236,55 @@ impl Problem<'_> {
         for (v, (lo, hi)) in p.iter_mut().zip(self.bounds(n)) {
             *v = v.clamp(lo, hi);
         }
+    }
+}
+
+/// The Gauss-Newton system of residuals `r` with Jacobian `j` (a row of `n` per
+/// residual): `a` = J^T J (n x n, whole) and `grad` = J^T r, the products by
+/// matrixmultiply's blocked kernels.
+fn normal_equations(j: &[f64], r: &[f64], n: usize, a: &mut [f64], grad: &mut [f64]) {
+    let m = r.len();
+    assert!(j.len() == m * n && a.len() == n * n && grad.len() == n);
+    if m == 0 || n == 0 {
+        a.fill(0.0);
+        grad.fill(0.0);
+        return;
+    }
+    // SAFETY: J is m x n row-major (so J^T is n x m with strides 1 and n), r m x 1, A
+    // n x n and grad n x 1, as asserted above; the outputs do not overlap the inputs.
+    unsafe {
+        matrixmultiply::dgemm(
+            n,
+            m,
+            n,
+            1.0,
+            j.as_ptr(),
+            1,
+            n as isize,
+            j.as_ptr(),
+            n as isize,
+            1,
+            0.0,
+            a.as_mut_ptr(),
+            n as isize,
+            1,
+        );
+        matrixmultiply::dgemm(
+            n,
+            m,
+            1,
+            1.0,
+            j.as_ptr(),
+            1,
+            n as isize,
+            r.as_ptr(),
+            1,
+            1,
+            0.0,
+            grad.as_mut_ptr(),
+            1,
+            1,
+        );
     }
 }
 
