@@ -72,20 +72,15 @@ fn sweeps_hold(exact: &[(&str, &dyn Backend)], methods: &[&str]) {
     eprintln!("{} cases, {runs} runs off the reference", cases.len());
 }
 
+/// The fast CPU path and the GPU under each plan it runs (on lavapipe its own and a large
+/// GPU's), against one reference per case.
 #[test]
-fn sweeps_hold_on_the_cpu_paths() {
+fn sweeps_hold_on_every_path() {
     let cpu = matedit::cpu::FastCpu::new().expect("the fast CPU path");
-    sweeps_hold(&[("fast CPU", &cpu)], &["env2", "keep4", "table16"]);
-}
-
-/// Apart from the CPU paths' test, so that CI runs it again on a hardware GPU's paths
-/// alone.
-#[test]
-fn sweeps_hold_on_the_gpu() {
-    let Some(gpu) = common::gpu("sweeps_hold_on_the_gpu") else {
-        return;
-    };
-    sweeps_hold(&[("GPU", &gpu)], &[]);
+    let gpus = common::gpus("sweeps_hold_on_every_path");
+    let mut exact: Vec<(&str, &dyn Backend)> = vec![("fast CPU", &cpu)];
+    exact.extend(gpus.iter().map(|(name, g)| (*name, g as &dyn Backend)));
+    sweeps_hold(&exact, &["env2", "keep4", "table16"]);
 }
 
 /// At n.w = 0 the cosine max(0, n.w) has a kink: central finite differences see half a

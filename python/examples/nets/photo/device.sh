@@ -47,9 +47,10 @@ synth() {  # SPEC FOLDER SHARDS
 synth train.json /tmp/ds ${SHARDS:-12}
 [ "${PAPER_SHARDS:-0}" -gt 0 ] && synth paper128.json /tmp/ds_paper $PAPER_SHARDS
 
-# the GPU tests beside the training (the names as .ci/run reruns them)
+# the GPU tests beside the training: those whose names say gpu, and the comparisons of
+# every backend with the reference
 if [ -x /tmp/dev/it ]; then
-    (MATEDIT_REQUIRE_GPU=1 timeout ${TEST_SECONDS:-240} /tmp/dev/it gpu backends:: every_backend_gives_the_references_corrections \
+    (MATEDIT_REQUIRE_GPU=1 timeout ${TEST_SECONDS:-240} /tmp/dev/it gpu backends:: every_backend_gives_the_references_corrections sweeps_hold \
         --test-threads 4 >"$out/gpu_tests.log" 2>&1
      stamp "GPU tests: exit $? ($(grep -c '\.\.\. ok' "$out/gpu_tests.log") ok, $(grep -c 'FAILED\|panicked' "$out/gpu_tests.log") failed)") &
 fi
