@@ -281,11 +281,24 @@ fn a_chosen_level_is_within_its_tolerance_of_the_finest_on_every_pixel() {
             camera: Camera::Orthographic,
         })
         .unwrap();
-        let level = |q| {
-            continuous_light::render(&r, &b, &Accuracy::Exact, Integration::Level(q), &detail)
-                .unwrap()
-                .0
-                .remove(0)
+        // each level's whole image, rendered once (both tolerances may choose one level)
+        let mut images = std::collections::HashMap::new();
+        let mut level = |q| -> Image {
+            images
+                .entry(q)
+                .or_insert_with(|| {
+                    continuous_light::render(
+                        &r,
+                        &b,
+                        &Accuracy::Exact,
+                        Integration::Level(q),
+                        &detail,
+                    )
+                    .unwrap()
+                    .0
+                    .remove(0)
+                })
+                .clone()
         };
         let finest = level(continuous_light::LEVELS[continuous_light::LEVELS.len() - 1]);
         for tol in [1e-2, 1e-3] {
