@@ -1,8 +1,8 @@
 //! matedit's integration tests, one binary (cargo's own layout): a module per area, sharing
 //! the fixtures in `common`, the stability sweeps in `sweeps` and the HTTP client in `http`.
-//! Two suites stay binaries of their own: `tests/inputs_prop.rs` counts every allocation
-//! of its process through a global allocator, and `tests/shapes_files.rs` is run again with
-//! the `gltf` feature, which would otherwise rebuild all of these.
+//! One suite stays a binary of its own: `tests/inputs_prop/` counts every allocation of its
+//! process through a global allocator. The glTF cases of `shapes_files` need the `gltf`
+//! feature (`.ci/run` builds everything with it, once).
 //!
 //! `cargo test --test it MODULE::` runs one area, e.g. `cargo test --test it backends::`.
 
@@ -34,6 +34,7 @@ mod lod;
 mod envgen;
 mod io;
 mod shapes;
+mod shapes_files;
 mod validation;
 // what uses the layer: materials, editing, networks, datasets, the web editor
 mod edit;
