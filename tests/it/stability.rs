@@ -18,17 +18,21 @@ use sweeps::Outcome;
 const IMAGE_TOL: f64 = 3e-5;
 const GRAD_TOL: f64 = 1e-4;
 
-/// Every sweep case on `exact` against the reference, and on the fast CPU path through
-/// `methods`: invalid input rejected, valid input finite, the exact paths within their f32
-/// error.
-fn sweeps_hold(exact: &[(&str, &dyn Backend)], methods: &[&str]) {
+/// Every sweep case of sweeps `kind` (`material`, `geometry` or `light`) on `exact` against
+/// the reference, and on the fast CPU path through `methods`: invalid input rejected, valid
+/// input finite, the exact paths within their f32 error.
+fn sweeps_hold(exact: &[(&str, &dyn Backend)], methods: &[&str], kind: &str) {
     let reference = matedit::reference::Reference;
     let cpu = matedit::cpu::FastCpu::new().expect("the fast CPU path");
     let methods: Vec<Method> = methods
         .iter()
         .map(|m| m.parse().expect("a method"))
         .collect();
-    let cases = sweeps::cases();
+    let cases: Vec<sweeps::Case> = sweeps::cases()
+        .into_iter()
+        .filter(|c| c.sweep.split(':').next() == Some(kind))
+        .collect();
+    assert!(!cases.is_empty(), "no {kind} sweeps");
     let mut runs = 0;
     for case in &cases {
         let what = format!("{}: {}", case.sweep, case.label);
@@ -72,15 +76,39 @@ fn sweeps_hold(exact: &[(&str, &dyn Backend)], methods: &[&str]) {
     eprintln!("{} cases, {runs} runs off the reference", cases.len());
 }
 
-/// The fast CPU path and the GPU under each plan it runs (on lavapipe its own and a large
-/// GPU's), against one reference per case.
-#[test]
-fn sweeps_hold_on_every_path() {
+/// The kinds of sweep, a test each (the material sweeps' sharp lobes are among the suite's
+/// longest runs, and tests run side by side).
+const KINDS: [&str; 3] = ["material", "geometry", "light"];
+
+/// Sweeps `kind` on the fast CPU path and on the GPU under each plan it runs (on lavapipe
+/// its own and a large GPU's), against one reference per case.
+fn sweeps_hold_on_every_path(kind: &str) {
+    let test = format!("sweeps_hold_on_every_path ({kind})");
     let cpu = matedit::cpu::FastCpu::new().expect("the fast CPU path");
-    let gpus = common::gpus("sweeps_hold_on_every_path");
+    let gpus = common::gpus(&test);
     let mut exact: Vec<(&str, &dyn Backend)> = vec![("fast CPU", &cpu)];
     exact.extend(gpus.iter().map(|(name, g)| (*name, g as &dyn Backend)));
-    sweeps_hold(&exact, &["env2", "keep4", "table16"]);
+    sweeps_hold(&exact, &["env2", "keep4", "table16"], kind);
+}
+
+#[test]
+fn sweeps_hold_on_every_path_material() {
+    // every case is of one of the kinds, so the three tests run them all
+    for case in sweeps::cases() {
+        let kind = case.sweep.split(':').next().unwrap_or("");
+        assert!(KINDS.contains(&kind), "sweep {:?} of no kind", case.sweep);
+    }
+    sweeps_hold_on_every_path(KINDS[0]);
+}
+
+#[test]
+fn sweeps_hold_on_every_path_geometry() {
+    sweeps_hold_on_every_path(KINDS[1]);
+}
+
+#[test]
+fn sweeps_hold_on_every_path_light() {
+    sweeps_hold_on_every_path(KINDS[2]);
 }
 
 /// At n.w = 0 the cosine max(0, n.w) has a kink: central finite differences see half a

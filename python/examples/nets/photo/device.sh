@@ -50,7 +50,7 @@ synth train.json /tmp/ds ${SHARDS:-12}
 # the GPU tests beside the training: those whose names say gpu, and the comparisons of
 # every backend with the reference
 if [ -x /tmp/dev/it ]; then
-    (MATEDIT_REQUIRE_GPU=1 timeout ${TEST_SECONDS:-240} /tmp/dev/it gpu backends:: every_backend_gives_the_references_corrections sweeps_hold \
+    (MATEDIT_REQUIRE_GPU=1 timeout ${TEST_SECONDS:-240} /tmp/dev/it gpu backends:: every_backend_gives_the_references_corrections sweeps_hold_on_every_path \
         --test-threads 4 >"$out/gpu_tests.log" 2>&1
      stamp "GPU tests: exit $? ($(grep -c '\.\.\. ok' "$out/gpu_tests.log") ok, $(grep -c 'FAILED\|panicked' "$out/gpu_tests.log") failed)") &
 fi
