@@ -145,7 +145,7 @@ pub fn half_vector(w: [f64; 3], wp: [f64; 3]) -> ([f64; 3], f64) {
 /// The spline is quadratic: at most three consecutive basis functions are non-zero at any
 /// theta_d, and the sum skips the others' exact zeros (the same value, bit for bit, as the
 /// sum over all six in order: adding 0 changes nothing). This runs once per pixel-texel
-/// pair in perspective, a quarter of the reference's time there.
+/// pair in perspective, where the six-term sum was a quarter of the reference's time.
 pub fn coefficients(ctrl: &[f64; N_PARAMS], theta_d: f64) -> [f64; N_COEF_VALUES] {
     let b = spline_basis(theta_d);
     let first = b
