@@ -130,10 +130,10 @@ pub fn gpus(test: &str) -> Vec<(&'static str, matedit::gpu::GpuRenderer)> {
     let Some(g) = gpu(test) else {
         return Vec::new();
     };
-    // `Planner::as_large_gpu` plans as for hardware: a renderer planned so is not software
-    let large = g.planner().software;
+    // a hardware adapter, or MATEDIT_GPU_PLAN=large, plans as a large GPU already
+    let software = g.planner().software;
     let mut out = vec![("gpu", g)];
-    if large {
+    if software {
         let g = gpu(test)
             .expect("a second renderer on the adapter")
             .as_large_gpu()
