@@ -410,3 +410,25 @@ def test_a_missing_sample_is_named(dataset, tmp_path):
                 out.addfile(info, t.extractfile(info))
     with pytest.raises(ValueError, match="chunk-000000.tar: sample 00000003 is missing"):
         list(zip(range(3), data.ChunkStream(tmp_path, 4, shuffle_buffer=1)))
+
+
+EXAMPLES = pathlib.Path(__file__).resolve().parents[1] / "examples" / "nets"
+
+
+def test_the_example_recipes_load_and_each_pair_differs_in_the_rendering_loss():
+    """Every training recipe under python/examples/nets (a file whose header says
+    `python -m matedit.nets.train NAME.py`) loads with known settings of the right types,
+    and the with/without pairs of the rendering-loss experiment differ in that loss alone."""
+    recipes = sorted(
+        p for p in EXAMPLES.rglob("*.py") if f"matedit.nets.train {p.name} " in p.read_text()
+    )
+    assert {p.name for p in recipes} >= {"without_render_loss.py", "with_render_loss.py", "long.py",
+                                         "tune.py", "p16.py", "r16.py", "small.py"}
+    cfgs = {p.relative_to(EXAMPLES).as_posix(): train.load_config(p) for p in recipes}
+    for without, with_, also in [("paper/without_render_loss.py", "paper/with_render_loss.py", {}),
+                                 ("photo/p16.py", "photo/r16.py", {"render_pixels": 256})]:
+        a, b = cfgs[without], cfgs[with_]
+        assert not a["render_loss"] and b["render_loss"]
+        differ = {k for k in a if a[k] != b[k]}
+        assert differ == {"render_loss", *also}, (without, with_, differ)
+        assert all(b[k] == v for k, v in also.items())

@@ -3,9 +3,8 @@
 #   python -m matedit.nets.train long.py --out runs/long      # first
 #   python -m matedit.nets.train tune.py --out runs/tune      # --resume after a stop
 #   python -m matedit.nets.evaluate runs/tune/weights.safetensors data/test
-import pathlib as _pathlib
+from long import *  # noqa: F403 (long.py's settings)
 
-exec((_pathlib.Path(__file__).parent / "long.py").read_text())
 init = "runs/long/weights.safetensors"
 seed = 2
 batch_size = 32

@@ -2,8 +2,8 @@
 # experiment on photo-like data (docs/nets.md, "The third session"). The torch layer renders
 # 256 pixels drawn from each mask, on the GPU.
 #   bash device.sh SECONDS p16 r16
-import pathlib as _pathlib
+#   python -m matedit.nets.train r16.py --out runs/r16     anywhere else (device = "cpu")
+from p16 import *  # noqa: F403 (p16's settings)
 
-exec((_pathlib.Path(__file__).parent / "p16.py").read_text())
 render_loss = True
 render_pixels = 256

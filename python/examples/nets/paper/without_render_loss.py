@@ -1,6 +1,7 @@
 # The paper experiment, run (a): the per-prediction losses only (docs/nets.md, "The experiment").
+# The other configs of this folder take these settings with `from without_render_loss import *`.
 #   python split.py MESHES ENVMAPS && matedit synth train.json -o data/train && matedit synth test.json -o data/test
-#   python -m matedit.nets.train a.py --out runs/a       # --resume after a stop
+#   python -m matedit.nets.train without_render_loss.py --out runs/a       # --resume after a stop
 #   python -m matedit.nets.evaluate runs/a/weights.safetensors data/test
 import json as _json
 import pathlib as _pathlib
