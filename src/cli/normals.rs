@@ -18,7 +18,7 @@ Examples:
   matedit render --normals blob.exr -o blob_render.png
 
 Meshes: .obj, .ply, .stl, .off (.gltf, .glb with --features gltf). Shapes: sphere, blobby, superquadric, torus,
-capsule, box, cylinder, plate, limb, extrusion, union, random; KIND:seed=N fixes a shape's
+capsule, box, cylinder, plate, limb, extrusion, union, random, vessel; KIND:seed=N fixes a shape's
 own seed. Outputs: .exr or .npy (float32 n.x, n.y, n.z; background 0), .png (8-bit RGBA,
 v = (n + 1) / 2 * 255, alpha = the mask). See docs/shapes.md.";
 

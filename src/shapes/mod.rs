@@ -27,6 +27,7 @@ pub mod mesh;
 pub mod procedural;
 mod raster;
 pub mod tessellate;
+mod vessel;
 pub mod view;
 
 #[cfg(feature = "gltf")]

@@ -8,6 +8,7 @@ use std::str::FromStr;
 
 use super::mesh::{Mesh, V3, dot, scale, sub, widen};
 use super::tessellate::{cuboid, cylinder, direction, prism, sphere_grid, torus_grid, tube};
+use super::vessel::vessel;
 use super::view::{Rotation, mat_vec};
 use crate::splitmix::SplitMix;
 
@@ -39,11 +40,15 @@ pub enum ShapeKind {
     Union,
     /// One of the kinds above but the sphere, drawn from the seed.
     Random,
+    /// A vessel turned about +y (a cup, bowl, vase, jar or bottle): a random smooth outer
+    /// profile, open at the top with walls of a random thickness, or closed by a flat lid.
+    /// Not among the kinds `union` and `random` draw, so their draws stay as they were.
+    Vessel,
 }
 
 impl ShapeKind {
     /// Every kind, by its spec name.
-    pub const ALL: [(&'static str, ShapeKind); 12] = [
+    pub const ALL: [(&'static str, ShapeKind); 13] = [
         ("sphere", ShapeKind::Sphere),
         ("blobby", ShapeKind::Blobby),
         ("superquadric", ShapeKind::Superquadric),
@@ -56,6 +61,7 @@ impl ShapeKind {
         ("extrusion", ShapeKind::Extrusion),
         ("union", ShapeKind::Union),
         ("random", ShapeKind::Random),
+        ("vessel", ShapeKind::Vessel),
     ];
 
     /// The spec name.
@@ -202,6 +208,7 @@ fn make(kind: ShapeKind, seed: u64) -> Mesh {
         }
         ShapeKind::Union => union(&mut d),
         ShapeKind::Random => make(PARTS[d.below(PARTS.len())], d.0.next_u64()),
+        ShapeKind::Vessel => vessel(|lo, hi| d.range(lo, hi)),
     }
 }
 

@@ -1,5 +1,6 @@
 //! The contact sheet of procedural shapes in docs/shapes.md: each kind (columns: sphere,
-//! blobby, superquadric, torus, capsule, box, cylinder, plate, limb, extrusion, union)
+//! blobby, superquadric, torus, capsule, box, cylinder, plate, limb, extrusion, union,
+//! vessel)
 //! for seeds 1, 2 and 3 (rows), each seed's random rotation, orthographic, smooth normals,
 //! shown as (n + 1) / 2 on grey.
 //!
