@@ -1,12 +1,12 @@
 //! A vessel turned about +y, the kind `vessel` of the procedural shapes: a cup, bowl,
 //! vase, jar or bottle, with a random smooth outer profile, open at the top with walls of
-//! a random thickness or closed by a flat lid, as a ring of vertices per point of the
-//! profile between two poles on the axis.
+//! a random thickness (half of them with a handle) or closed by a flat lid, as a ring of
+//! vertices per point of the profile between two poles on the axis.
 
 use std::f64::consts::PI;
 
 use super::mesh::{Mesh, V3};
-use super::tessellate::closed_rings;
+use super::tessellate::{closed_rings, tube};
 
 /// A vessel from the draws of `range(lo, hi)` (uniform in [lo, hi)). Its profile is
 /// (radius, height) from the pole at the top of `closed_rings` to the
@@ -34,6 +34,7 @@ pub(super) fn vessel(mut range: impl FnMut(f64, f64) -> f64) -> Mesh {
     };
     let y = |t: f64| -h + 2.0 * h * t;
     let mut profile: Vec<[f64; 2]> = Vec::new();
+    let mut handle = None;
     let top = if range(0.0, 1.0) < 0.5 {
         let wall = range(0.03, 0.08);
         let floor = -h + range(0.06, 0.18);
@@ -50,6 +51,34 @@ pub(super) fn vessel(mut range: impl FnMut(f64, f64) -> f64) -> Mesh {
             let a = PI * i as f64 / DISC as f64;
             [c - r * a.cos(), h + r * a.sin()]
         }));
+        if range(0.0, 1.0) < 0.5 {
+            // a cup's handle: a round bar along a cubic Bezier out from the outer wall
+            // and back, in the x-y plane; its rounded ends sink into the wall by half the
+            // bar's radius, less than the wall is thick, so they stay out of the opening
+            let bar = wall * range(0.8, 1.6);
+            let (upper, lower) = (range(0.6, 0.9), range(0.15, 0.45));
+            let widest = (0..=32)
+                .map(|i| outer(lower + (upper - lower) * i as f64 / 32.0))
+                .fold(0.0, f64::max);
+            let out = widest + range(0.2, 0.45);
+            let p = [
+                [outer(upper) + 0.5 * bar, y(upper)],
+                [out, y(upper)],
+                [out, y(lower)],
+                [outer(lower) + 0.5 * bar, y(lower)],
+            ];
+            let bezier = move |s: f64| {
+                let w = [
+                    (1.0 - s).powi(3),
+                    3.0 * (1.0 - s).powi(2) * s,
+                    3.0 * (1.0 - s) * s * s,
+                    s.powi(3),
+                ];
+                let at = |k: usize| (0..4).map(|j| w[j] * p[j][k]).sum::<f64>();
+                [at(0), at(1), 0.0]
+            };
+            handle = Some(tube(6, 48, 24, bezier, |_| bar));
+        }
         floor
     } else {
         profile.extend((1..DISC).map(|i| [outer(1.0) * i as f64 / DISC as f64, h]));
@@ -76,7 +105,11 @@ pub(super) fn vessel(mut range: impl FnMut(f64, f64) -> f64) -> Mesh {
                 .collect()
         })
         .collect();
-    closed_rings([0.0, top, 0.0], &rings, [0.0, -h, 0.0])
+    let mut m = closed_rings([0.0, top, 0.0], &rings, [0.0, -h, 0.0]);
+    if let Some(handle) = handle {
+        m.append(&handle);
+    }
+    m
 }
 
 #[cfg(test)]
@@ -87,7 +120,7 @@ mod tests {
 
     #[test]
     fn vessels_face_out_of_their_walls_open_or_closed() {
-        let (mut open, mut closed) = (0, 0);
+        let (mut open, mut closed, mut handles) = (0, 0, 0);
         for seed in 0..64 {
             let mut r = SplitMix(seed);
             let m = vessel(|lo, hi| lo + (hi - lo) * r.uniform());
@@ -108,6 +141,8 @@ mod tests {
             } else {
                 closed += 1;
             }
+            // the body has 2 poles and rings of 96 vertices; a handle adds a tube's
+            handles += usize::from((m.positions.len() - 2) % 96 != 0);
             // facing out of the solid: the triangles enclose a positive signed volume
             let volume: f64 = m
                 .triangles
@@ -120,8 +155,8 @@ mod tests {
             assert!(volume > 0.01, "seed {seed}: signed volume {volume}");
         }
         assert!(
-            open >= 16 && closed >= 16,
-            "{open} open, {closed} closed of 64"
+            open >= 16 && closed >= 16 && handles >= 6 && handles < open,
+            "{open} open ({handles} with a handle), {closed} closed of 64"
         );
     }
 }
