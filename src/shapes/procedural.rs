@@ -40,8 +40,9 @@ pub enum ShapeKind {
     Union,
     /// One of the kinds above but the sphere, drawn from the seed.
     Random,
-    /// A vessel turned about +y (a cup, bowl, vase, jar or bottle): a random smooth outer
-    /// profile, open at the top with walls of a random thickness, or closed by a flat lid.
+    /// A vessel turned about +y (a cup or mug, bowl, vase, jar or bottle): a random smooth
+    /// outer profile, open at the top with walls of a random thickness (half of those with
+    /// a handle), or closed by a flat lid.
     /// Not among the kinds `union` and `random` draw, so their draws stay as they were.
     Vessel,
 }

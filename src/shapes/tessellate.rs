@@ -44,6 +44,23 @@ pub fn closed_rings(top: V3, rings: &[Vec<V3>], bottom: V3) -> Mesh {
     with_smooth_normals(m)
 }
 
+/// A surface of revolution about +y: `profile`'s (radius, height) points, each turned into
+/// a ring of `cols` points, between the poles at heights `top` and `bottom` on the axis.
+pub fn lathe(top: f64, profile: &[[f64; 2]], bottom: f64, cols: usize) -> Mesh {
+    let rings: Vec<Vec<V3>> = profile
+        .iter()
+        .map(|&[r, y]| {
+            (0..cols)
+                .map(|k| {
+                    let phi = 2.0 * PI * k as f64 / cols as f64;
+                    [r * phi.cos(), y, -r * phi.sin()]
+                })
+                .collect()
+        })
+        .collect();
+    closed_rings([0.0, top, 0.0], &rings, [0.0, bottom, 0.0])
+}
+
 /// A sphere-like surface: `f(theta, phi)` on `rows` - 1 rings of `cols` points, theta
 /// (from +y) in (0, pi), phi in [0, 2 pi) (see [`direction`]); the poles are f(0, 0) and
 /// f(pi, 0).

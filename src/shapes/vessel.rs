@@ -5,16 +5,15 @@
 
 use std::f64::consts::PI;
 
-use super::mesh::{Mesh, V3};
-use super::tessellate::{closed_rings, tube};
+use super::mesh::Mesh;
+use super::tessellate::{lathe, tube};
 
-/// A vessel from the draws of `range(lo, hi)` (uniform in [lo, hi)). Its profile is
-/// (radius, height) from the pole at the top of `closed_rings` to the
-/// one at the bottom, the poles left out: for an open vessel from the middle of its inner
-/// floor out and up the inner wall, over a round lip and down the outer wall, then in
-/// across the base; for a closed one across the lid, down the wall, across the base. The
-/// solid stays on one side of the walk, so the rings' triangles face out of it
-/// everywhere, into the opening too.
+/// A vessel from the draws of `range(lo, hi)` (uniform in [lo, hi)). Its profile runs
+/// (radius, height) from the lathe's top pole to its bottom one, the poles left out: for
+/// an open vessel from the middle of its inner floor out and up the inner wall, over a
+/// round lip and down the outer wall, then in across the base; for a closed one across
+/// the lid, down the wall, across the base. The solid stays on one side of the walk, so
+/// the rings' triangles face out of it everywhere, into the opening too.
 pub(super) fn vessel(mut range: impl FnMut(f64, f64) -> f64) -> Mesh {
     const ROWS: usize = 64;
     const DISC: usize = 8;
@@ -93,19 +92,7 @@ pub(super) fn vessel(mut range: impl FnMut(f64, f64) -> f64) -> Mesh {
             .rev()
             .map(|i| [outer(0.0) * i as f64 / DISC as f64, -h]),
     );
-    let cols = 96;
-    let rings: Vec<Vec<V3>> = profile
-        .iter()
-        .map(|&[r, y]| {
-            (0..cols)
-                .map(|k| {
-                    let phi = 2.0 * PI * k as f64 / cols as f64;
-                    [r * phi.cos(), y, -r * phi.sin()]
-                })
-                .collect()
-        })
-        .collect();
-    let mut m = closed_rings([0.0, top, 0.0], &rings, [0.0, -h, 0.0]);
+    let mut m = lathe(top, &profile, -h, 96);
     if let Some(handle) = handle {
         m.append(&handle);
     }
