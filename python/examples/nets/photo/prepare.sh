@@ -8,7 +8,7 @@
 # ../shared/data/envmaps_more. Writes, kept out of git by .git/info/exclude:
 #   .dev/it.xz           the release test binary, stripped (the GPU tests)
 #   .dev/matedit.so.xz   the Python package's extension, release, stripped
-#   .dev/data.tar.xz     photo/{meshes/train, envmaps}: train.json's inputs
+#   .dev/data.tar.xz     photo/{meshes/train, envmaps}: train.json's inputs (the HDRIs it names)
 #   .gl/*.deb            the Vulkan loader and its neighbours (the device's README)
 # Then one run on the device, carrying .dev and .gl:
 #   bash python/examples/nets/photo/device.sh SECONDS RUN...
@@ -42,12 +42,14 @@ cp -r python/matedit "$site/"
 cp target/release/lib_matedit.so "$site/matedit/_matedit.abi3.so"
 (cd python/examples/nets/paper &&
     PATH="$PWD/../../../../target/release:$PATH" PYTHONPATH="$site" python3 split.py "$meshes" "$envmaps")
-mkdir -p "$site/photo/envmaps"
-cp -r python/examples/nets/paper/meshes "$site/photo/"
-rm -rf "$site/photo/meshes/test"
-cp "$envmaps"/*.exr "$site/photo/envmaps/"
+mkdir -p "$site/photo/meshes" "$site/photo/envmaps"
+cp -r python/examples/nets/paper/meshes/train "$site/photo/meshes/"
+for f in $(python3 -c 'import json, sys
+print(*(e["file"] for e in json.load(open(sys.argv[1]))["envs"] if "file" in e))' python/examples/nets/photo/train.json); do
+    cp "$envmaps/$(basename "$f")" "$site/photo/$f"
+done
 tar -C "$site" -cJf .dev/data.tar.xz photo
-echo "prepare: .dev/data.tar.xz, $(ls "$site/photo/meshes/train" | wc -l) training meshes ($((SECONDS - t0)) s)"
+echo "prepare: .dev/data.tar.xz, $(ls "$site/photo/meshes/train" | wc -l) training meshes, $(ls "$site/photo/envmaps" | wc -l) HDRIs ($((SECONDS - t0)) s)"
 
 # the Vulkan loader, for a machine that has none (device.sh unpacks it only then)
 o=(-oAPT::Architecture=amd64 -oAPT::Architectures=amd64 -oDir::State::Lists=/tmp/amd64)
