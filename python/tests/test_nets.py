@@ -325,6 +325,31 @@ def test_predict_and_weights_round_trip(tmp_path):
     assert abs(float(lin.permute(0, 2, 3, 1)[0][torch.from_numpy(mask)].mean()) - 1) < 1e-5
 
 
+def test_mirrored_predictions_are_mirror_symmetric():
+    from matedit.nets.model import MIRROR, mirror_env
+
+    # the light's mirror agrees with the layer: the mirrored scene renders the mirrored image
+    normals = matedit.sphere(16)
+    env = (matedit.sky(8, 16) * np.linspace(0.2, 2, 16)[None, :, None]).astype(np.float32)
+    gold = matedit.preset("gold")
+    image = matedit.render(normals, env, gold)
+    m_normals = np.ascontiguousarray(normals[:, ::-1] * np.array(MIRROR, np.float32))
+    m_env = mirror_env(torch.from_numpy(env)[None])[0].numpy()
+    assert np.allclose(matedit.render(m_normals, m_env, gold), image[:, ::-1], atol=1e-6)
+    assert not np.allclose(matedit.render(m_normals, env, gold), image[:, ::-1], atol=1e-2)
+    # averaged with its mirror, a prediction of the mirrored image is the mirrored prediction
+    torch.manual_seed(0)
+    nets = Nets(NetsConfig(width=4, levels=2, env_height=8, env_width=16))
+    image[3:6, 2:4] *= 3  # no longer symmetric
+    a, b = nets.predict(image, mirror=True), nets.predict(np.ascontiguousarray(image[:, ::-1]), mirror=True)
+    assert np.array_equal(a["mask"][:, ::-1], b["mask"])
+    assert np.allclose(a["normals"][:, ::-1] * np.array(MIRROR), b["normals"], atol=1e-5)
+    assert np.allclose(mirror_env(torch.from_numpy(a["env"])[None])[0].numpy(), b["env"], rtol=1e-4)
+    assert np.allclose(a["ctrl"], b["ctrl"], rtol=1e-4, atol=1e-4)
+    plain = nets.predict(image)
+    assert not np.allclose(plain["normals"], a["normals"], atol=1e-3)
+
+
 def test_a_basis_of_some_presets(tmp_path):
     names = matedit.presets()[:90]
     nets = Nets(NetsConfig(width=4, levels=2, env_height=8, env_width=16, basis=[names[5], names[0]]))

@@ -28,6 +28,16 @@ impl Planes {
         &self.v[ci * self.area()..(ci + 1) * self.area()]
     }
 
+    /// Every plane mirrored left to right (torch.flip along the last dimension).
+    pub(super) fn mirrored(&self) -> Planes {
+        let v = self
+            .v
+            .chunks_exact(self.w)
+            .flat_map(|row| row.iter().rev().copied())
+            .collect();
+        Planes::new(self.c, self.h, self.w, v)
+    }
+
     /// `self`'s channels, then `other`'s (torch.cat along dimension 1).
     pub(super) fn cat(&self, other: &Planes) -> Planes {
         assert_eq!((self.h, self.w), (other.h, other.w), "cat: sizes differ");

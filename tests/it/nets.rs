@@ -81,7 +81,15 @@ fn predictions_match_pytorch() {
     check_cases(
         &nets,
         &data("parity.safetensors"),
-        &["masked", "unmasked", "square", "wide_masked", "black"],
+        &[
+            "masked",
+            "unmasked",
+            "square",
+            "wide_masked",
+            "black",
+            "unmasked_mirror",
+            "wide_masked_mirror",
+        ],
     );
 }
 
@@ -116,7 +124,10 @@ fn check_cases(nets: &Nets, file: &Path, cases: &[&str]) {
         let mask_in: Option<Vec<bool>> = all
             .get(&format!("{case}.mask_in"))
             .map(|(_, m)| m.iter().map(|&v| v != 0.0).collect());
-        let p = nets.predict(&image, mask_in.as_deref()).expect("predicts");
+        let mirror = case.ends_with("_mirror");
+        let p = nets
+            .predict_with(&image, mask_in.as_deref(), mirror)
+            .expect("predicts");
 
         let mask: Vec<bool> = get("mask").1.iter().map(|&v| v != 0.0).collect();
         let flips = p.mask.iter().zip(&mask).filter(|(a, b)| a != b).count();

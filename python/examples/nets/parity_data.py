@@ -10,7 +10,8 @@ parity.safetensors holds, per case C:
   C.normals (H, W, 3), C.mask (H, W) uint8, C.mask_prob (H, W), C.env (H_L, W_L, 3)
   float32 and C.ctrl (108,) float64: `Nets.predict`'s outputs, and the foreground
   probability of the pass that decided the mask (the pass on the image normalised by its
-  whole mean without a mask; the pass on the masked input with one).
+  whole mean without a mask; the pass on the masked input with one). Cases named
+  C_mirror are `Nets.predict(..., mirror=True)` on case C's input.
 
     ... parity_data.py --default-weights PATH
 
@@ -53,14 +54,15 @@ def disc(h: int, w: int) -> np.ndarray:
 def predictions(nets, cases: dict) -> dict:
     data = {}
     for name, (img, mask) in cases.items():
-        pred = nets.predict(img, mask)
+        mirror = name.endswith("_mirror")
+        pred = nets.predict(img, mask, mirror)
         with torch.no_grad():
             t = torch.from_numpy(img)[None]
             if mask is None:
-                logits = nets.normals(prepare(t))[1][0]
+                logits = nets.mask_and_normals(prepare(t), mirror)[1][0]
             else:
                 m = torch.from_numpy(mask)[None]
-                logits = nets(prepare(t, m), m)["mask_logits"][0]
+                logits = nets(prepare(t, m), m, mirror)["mask_logits"][0]
         data[f"{name}.image"] = img
         if mask is not None:
             data[f"{name}.mask_in"] = mask.astype(np.uint8)
@@ -112,6 +114,8 @@ def main() -> None:
         # divides rounding noise by sqrt(eps), and PyTorch and the Rust nets round differently
         "black": (image(rng, 8, 10) * ~disc(8, 10)[..., None], disc(8, 10)),
     }
+    cases["unmasked_mirror"] = cases["unmasked"]
+    cases["wide_masked_mirror"] = cases["wide_masked"]
     data = predictions(nets, cases)
     save_file({k: np.ascontiguousarray(v) for k, v in data.items()}, str(out / "parity.safetensors"))
     size = sum(p.stat().st_size for p in out.glob("*.safetensors"))

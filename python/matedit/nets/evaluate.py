@@ -26,6 +26,8 @@ With `--at-nets-size` the nets see each image as `matedit edit` shows them a pho
 to the size they were trained at (their image_size; area averaging down, bilinear up), their
 normals and mask logits brought back to the data's size bilinearly; the metrics stay at the
 data's size. So nets trained at different sizes are compared on the same images.
+With `--mirror` each net's answers are averaged with those for the image mirrored left to
+right (`Nets.forward`), as `matedit edit` runs them.
 It prints a table and writes the numbers as JSON.
 """
 
@@ -128,10 +130,11 @@ def iou(a: torch.Tensor, b: torch.Tensor) -> float:
 
 
 def evaluate(nets: Nets, folder, batch_size: int = 8, limit: int | None = None, device: str = "cpu",
-             at_nets_size: bool = False) -> dict:
+             at_nets_size: bool = False, mirror: bool = False) -> dict:
     """The metrics of `nets` and of the baselines on the samples of `folder` (see the module's
     docstring): {"samples", "nets": {...}, "baselines": {...}}. at_nets_size: the nets see
-    each image resized to their image_size."""
+    each image resized to their image_size; mirror: the nets' answers averaged with the
+    mirrored image's (`Nets.forward`)."""
     nets.eval()
     probe = probe_scene(32, nets.cfg.env_height, nets.cfg.env_width)
     m_mean, l_mean = mean_material(nets), mean_light(nets)
@@ -143,7 +146,7 @@ def evaluate(nets: Nets, folder, batch_size: int = 8, limit: int | None = None, 
         count += len(batch)
         with torch.no_grad():
             size = nets.cfg.image_size if at_nets_size else None
-            _eval_batch(nets, collate(batch), probe, m_mean, l_mean, device, acc, angles, str(folder), size)
+            _eval_batch(nets, collate(batch), probe, m_mean, l_mean, device, acc, angles, str(folder), size, mirror)
     if count == 0:
         raise ValueError(f"{folder}: no samples")
     res = {"samples": count}
@@ -168,7 +171,8 @@ def resize(x: torch.Tensor, size: tuple[int, int]) -> torch.Tensor:
     return F.interpolate(x, size=size, mode="bilinear", align_corners=False)
 
 
-def _eval_batch(nets, b, probe, m_mean, l_mean, device, acc, angles, where: str, size: int | None = None) -> None:
+def _eval_batch(nets, b, probe, m_mean, l_mean, device, acc, angles, where: str, size: int | None = None,
+                mirror: bool = False) -> None:
     image, mask = b["image"], b["mask"]
     hw = tuple(image.shape[1:3])
     target, s = normalise(image, mask)
@@ -180,14 +184,14 @@ def _eval_batch(nets, b, probe, m_mean, l_mean, device, acc, angles, where: str,
         small = resize_image(image, net_hw)
         check_sizes(nets.cfg, small, b["env"], where)
         x = prepare(small, m_in)
-        out = nets(x, m_in)
+        out = nets(x, m_in, mirror)
         n = resize(out["normals"].permute(0, 3, 1, 2), hw).permute(0, 2, 3, 1)
         out["normals"] = F.normalize(n, dim=-1, eps=1e-6)
-        pred_mask = resize(nets.normals(x)[1][:, None], hw)[:, 0] > 0
+        pred_mask = resize(nets.mask_and_normals(x, mirror)[1][:, None], hw)[:, 0] > 0
     else:
         check_sizes(nets.cfg, image, b["env"], where)
-        out = nets(x, mask)
-        pred_mask = nets.normals(x)[1] > 0
+        out = nets(x, mask, mirror)
+        pred_mask = nets.mask_and_normals(x, mirror)[1] > 0
     n_bal = torch.from_numpy(np.stack([balloon(m) for m in mask.numpy()]))
     nb = image.shape[0]
     guesses = {
@@ -253,17 +257,19 @@ def main(argv=None) -> int:
     ap.add_argument("--limit", type=int, help="evaluate the first N samples only")
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--at-nets-size", action="store_true", help="the nets see each image resized to their training size")
+    ap.add_argument("--mirror", action="store_true", help="average the nets' answers with the mirrored image's")
     args = ap.parse_args(argv)
     torch.set_num_threads(args.threads)
     try:
         trained_on = weights_data_spec(args.weights)
         if trained_on is not None and trained_on == spec_digest(args.data):
             raise ValueError(f"{args.data}: the data these weights were trained on; evaluate on a held-out split")
-        res = evaluate(load(args.weights), args.data, args.batch_size, args.limit, at_nets_size=args.at_nets_size)
+        res = evaluate(load(args.weights), args.data, args.batch_size, args.limit, at_nets_size=args.at_nets_size,
+                       mirror=args.mirror)
     except ValueError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
-    res["weights"], res["data"], res["at_nets_size"] = args.weights, args.data, args.at_nets_size
+    res["weights"], res["data"], res["at_nets_size"], res["mirror"] = args.weights, args.data, args.at_nets_size, args.mirror
     path = args.json or f"{args.weights}.eval.json"
     with open(path, "w") as f:
         json.dump(res, f, indent=1)

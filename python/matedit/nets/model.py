@@ -250,7 +250,10 @@ class MaterialNet(nn.Module):
         self.register_buffer("is_exponent", torch.arange(108) // 6 % 2 == 1, persistent=False)
 
     def forward(self, x: torch.Tensor, mask: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        w = torch.softmax(self.net(x, mask), -1)
+        return self.mix(torch.softmax(self.net(x, mask), -1))
+
+    def mix(self, w: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """(ctrl, w) of softmax weights w (B, K)."""
         ctrl = w @ self.presets
         # weights summing to 1 + 1e-7 in float32 would put a mix of 1e4 exponents just over
         # the layer's bound of 1e4
@@ -267,8 +270,22 @@ class LightNet(nn.Module):
         self.net = GlobalNet(cfg, math.prod(self.shape))
 
     def forward(self, x: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
-        log_env = self.net(x, mask).view(-1, *self.shape)
-        return torch.exp(log_env.clamp(-20, 20))
+        return torch.exp(self.log(x, mask))
+
+    def log(self, x: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+        """The log of the light, clamped to [-20, 20]."""
+        return self.net(x, mask).view(-1, *self.shape).clamp(-20, 20)
+
+
+# x -> -x in the camera frame: the normals of an image mirrored left to right
+MIRROR = (-1.0, 1.0, 1.0)
+
+
+def mirror_env(env: torch.Tensor) -> torch.Tensor:
+    """The light (B, H_L, W_L, 3) of an image mirrored left to right: x -> -x takes the
+    equirect azimuth phi to pi - phi, column c to (W_L / 2 - 1 - c) mod W_L."""
+    w = env.shape[2]
+    return env[:, :, (w // 2 - 1 - torch.arange(w, device=env.device)) % w]
 
 
 class Nets(nn.Module):
@@ -284,14 +301,32 @@ class Nets(nn.Module):
         self.register_buffer("log_light_sum", torch.zeros(cfg.env_height, cfg.env_width, 3, dtype=torch.float64))
         self.register_buffer("light_count", torch.zeros((), dtype=torch.float64))
 
-    def forward(self, x: torch.Tensor, mask: torch.Tensor | None = None) -> dict:
+    def forward(self, x: torch.Tensor, mask: torch.Tensor | None = None, mirror: bool = False) -> dict:
         """x = prepare(image, mask); the material and light nets see `mask`, or the
-        predicted mask without one."""
-        n, logits = self.normals(x)
+        predicted mask without one. With `mirror`, each net also sees the image mirrored
+        left to right, and the two answers are averaged, the mirrored one mirrored back:
+        the normals (renormalised), the mask logits, the material's weights, the light's log."""
+        n, logits = self.mask_and_normals(x, mirror)
         if mask is None:
             mask = logits > 0
-        ctrl, weights = self.material(x, mask)
-        return {"normals": n, "mask_logits": logits, "ctrl": ctrl, "weights": weights, "env": self.light(x, mask)}
+        w = torch.softmax(self.material.net(x, mask), -1)
+        log_env = self.light.log(x, mask)
+        if mirror:
+            xm, mm = x.flip(-1), mask.flip(-1)
+            w = (w + torch.softmax(self.material.net(xm, mm), -1)) / 2
+            log_env = (log_env + mirror_env(self.light.log(xm, mm))) / 2
+        ctrl, w = self.material.mix(w)
+        return {"normals": n, "mask_logits": logits, "ctrl": ctrl, "weights": w, "env": torch.exp(log_env)}
+
+    def mask_and_normals(self, x: torch.Tensor, mirror: bool = False) -> tuple[torch.Tensor, torch.Tensor]:
+        """The normals net's (normals, mask logits) of x; with `mirror`, averaged with those
+        of the mirrored image (see `forward`)."""
+        n, logits = self.normals(x)
+        if mirror:
+            nm, lm = self.normals(x.flip(-1))
+            n = F.normalize(n + nm.flip(2) * n.new_tensor(MIRROR), dim=-1, eps=1e-6)
+            logits = (logits + lm.flip(-1)) / 2
+        return n, logits
 
     def mean_light(self) -> torch.Tensor:
         """The geometric mean of the training lights seen (normalised), (H_L, W_L, 3), as the
@@ -300,18 +335,19 @@ class Nets(nn.Module):
         return torch.where(self.light_count > 0, mean.clamp_min(0), torch.ones_like(mean)).float()
 
     @torch.no_grad()
-    def predict(self, image, mask=None) -> dict:
+    def predict(self, image, mask=None, mirror: bool = False) -> dict:
         """Normals, mask, material and light of a linear HDR image (H, W, 3) or (B, H, W, 3),
         as NumPy arrays; the light is in the image's units (times s). mask: (H, W) or
-        (B, H, W), or None to use the predicted one."""
+        (B, H, W), or None to use the predicted one. mirror: average with the mirrored
+        image's answers (see `forward`)."""
         was = self.training
         try:
             self.eval()
-            return self._predict(image, mask)
+            return self._predict(image, mask, mirror)
         finally:
             self.train(was)
 
-    def _predict(self, image, mask) -> dict:
+    def _predict(self, image, mask, mirror: bool) -> dict:
         img = check_image("image", image).to(self.log_light_sum.device)
         k = 2 ** (self.cfg.levels - 1)
         if img.shape[1] % k or img.shape[2] % k:
@@ -324,9 +360,9 @@ class Nets(nn.Module):
                 want = tuple(img.shape[:3]) if len(given) != 2 else tuple(img.shape[1:3])
                 raise ValueError(f"mask: shape {given}, expected {want}")
         else:
-            m = self.normals(prepare(img))[1] > 0
+            m = self.mask_and_normals(prepare(img), mirror)[1] > 0
         x = prepare(img, m)
-        out = self(x, m)
+        out = self(x, m, mirror)
         _, s = normalise(img, m)
         single = np.asarray(image).ndim == 3 if not isinstance(image, torch.Tensor) else image.dim() == 3
         res = {

@@ -1,9 +1,11 @@
 """The held-out parts of the paper experiment (docs/nets.md, "The experiment"), by fixed rules:
 
-    python split.py MESHES_FOLDER ENVMAPS_FOLDER
+    python split.py MESHES_FOLDER [ENVMAPS_FOLDER]
 
 `matedit` must be on the PATH. MESHES_FOLDER: e.g. the CGAL meshes (docs/shapes.md says how to get them); ENVMAPS_FOLDER
-holds forest.exr, studio.exr and sunset.exr (the project's CC0 HDRIs), copied to envmaps/.
+holds forest.exr, studio.exr and sunset.exr (the project's CC0 HDRIs, ../shared/data/envmaps),
+copied to envmaps/. Give it only for this folder's specs: envmaps_more has other images of
+the same three names, and the paper's splits drawn with those are other splits.
 
 - meshes: grouped by the leading letters of their names (cube, cube-meshed and cube4-shuffled
   are one group, so no variant of a held-out mesh is trained on); every fourth group in
@@ -42,11 +44,12 @@ def loads(path: pathlib.Path, tmp: str) -> bool:
     return subprocess.run(cmd, capture_output=True).returncode == 0
 
 
-def main(folder: str, envmaps: str) -> None:
-    out = pathlib.Path(__file__).parent / "envmaps"
-    out.mkdir(exist_ok=True)
-    for name in ("forest.exr", "studio.exr", "sunset.exr"):
-        shutil.copyfile(pathlib.Path(envmaps) / name, out / name)
+def main(folder: str, envmaps: str | None) -> None:
+    if envmaps is not None:
+        out = pathlib.Path(__file__).parent / "envmaps"
+        out.mkdir(exist_ok=True)
+        for name in ("forest.exr", "studio.exr", "sunset.exr"):
+            shutil.copyfile(pathlib.Path(envmaps) / name, out / name)
     files = sorted(p for p in pathlib.Path(folder).iterdir() if p.suffix.lower() in MESH_TYPES)
     with tempfile.TemporaryDirectory() as tmp:
         files = [p for p in files if loads(p, tmp)]
@@ -64,6 +67,6 @@ def main(folder: str, envmaps: str) -> None:
 
 
 if __name__ == "__main__":
-    if len(sys.argv) != 3:
+    if len(sys.argv) not in (2, 3):
         sys.exit(__doc__)
-    main(sys.argv[1], sys.argv[2])
+    main(sys.argv[1], sys.argv[2] if len(sys.argv) == 3 else None)

@@ -41,7 +41,7 @@ trap 'rm -rf "$site"' EXIT
 cp -r python/matedit "$site/"
 cp target/release/lib_matedit.so "$site/matedit/_matedit.abi3.so"
 (cd python/examples/nets/paper &&
-    PATH="$PWD/../../../../target/release:$PATH" PYTHONPATH="$site" python3 split.py "$meshes" "$envmaps")
+    PATH="$PWD/../../../../target/release:$PATH" PYTHONPATH="$site" python3 split.py "$meshes")
 mkdir -p "$site/photo/meshes" "$site/photo/envmaps"
 cp -r python/examples/nets/paper/meshes/train "$site/photo/meshes/"
 for f in $(python3 -c 'import json, sys
