@@ -147,7 +147,8 @@ def _photo(name: str, a) -> np.ndarray:
     return a
 
 
-def edit(photo, material=None, *, like=None, mask=None, like_mask=None, steps=20, weights=None, device="auto", box=None, points=None, detail=1.0) -> dict:
+def edit(photo, material=None, *, like=None, mask=None, like_mask=None, steps=20, weights=None, device="auto", box=None, points=None, detail=1.0,
+         mirror=True) -> dict:
     """The object in `photo` made of another material, as `matedit edit` does (docs/edit.md).
 
     photo: (H, W, 3), linear float32 or 8-bit sRGB (uint8). material: a preset name or
@@ -159,7 +160,9 @@ def edit(photo, material=None, *, like=None, mask=None, like_mask=None, steps=20
     steps: refinement steps (0: the predictions alone). weights: a weights file (None: the
     built-in nets).
     detail: how much of the photo's own detail the edit keeps, 0 to 1 (1: the photo with the
-    shading changed to the new material's; 0: the re-rendered object alone).
+    shading changed to the new material's; 0: the re-rendered object alone). mirror: the nets
+    also see the photo mirrored left to right and their answers are averaged (False: half
+    the nets' time, as `matedit edit --no-mirror`).
 
     Returns a dict: "edit" (H, W, 3) linear, "mask" and "alpha" (H, W), "normals" at the
     crop (S, S, 3) and "crop" (x0, y0, S), "env" (the refined light), "material" and
@@ -171,7 +174,7 @@ def edit(photo, material=None, *, like=None, mask=None, like_mask=None, steps=20
         raise ValueError("give material or like, not both and not neither")
     if like is not None:
         grey = preset("matte-white")
-        m = edit_photo(_photo("like", like), grey, like_mask, steps, weights, device)["material"]
+        m = edit_photo(_photo("like", like), grey, like_mask, steps, weights, device, mirror=mirror)["material"]
     elif isinstance(material, str):
         m = preset(material)
     else:
@@ -185,4 +188,4 @@ def edit(photo, material=None, *, like=None, mask=None, like_mask=None, steps=20
             if len(p) not in (2, 3):
                 raise ValueError(f"points: {p!r} is not (x, y) or (x, y, on_object)")
             pts.append((int(p[0]), int(p[1]), bool(p[2]) if len(p) == 3 else True))
-    return edit_photo(photo, np.ascontiguousarray(m), mask, steps, weights, device, bounds, pts, detail)
+    return edit_photo(photo, np.ascontiguousarray(m), mask, steps, weights, device, bounds, pts, detail, mirror)

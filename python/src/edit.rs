@@ -21,10 +21,11 @@ pub(crate) fn builtin_weights(py: Python<'_>) -> Bound<'_, pyo3::types::PyBytes>
 
 /// `matedit edit` on arrays: the photo (H, W, 3) linear float32, the new material's control
 /// points (108,), the object's mask (H, W) bool or None (the nets find it), or a box
-/// (x0, y0, x1, y1) and points (x, y) on the object or (x, y, False) off it. Returns a dict
+/// (x0, y0, x1, y1) and points (x, y) on the object or (x, y, False) off it; mirror: the
+/// nets also see the photo mirrored (`Nets::with_mirror`). Returns a dict
 /// of NumPy arrays and numbers (see matedit.edit).
 #[pyfunction]
-#[pyo3(signature = (photo, material, mask = None, steps = 150, weights = None, device = "auto", bounds = None, points = None, detail = 1.0))]
+#[pyo3(signature = (photo, material, mask = None, steps = 150, weights = None, device = "auto", bounds = None, points = None, detail = 1.0, mirror = true))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn edit_photo<'py>(
     py: Python<'py>,
@@ -37,6 +38,7 @@ pub(crate) fn edit_photo<'py>(
     bounds: Option<(usize, usize, usize, usize)>,
     points: Option<Vec<(usize, usize, bool)>>,
     detail: f32,
+    mirror: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     use matedit::edit::photo::{self, PhotoOptions};
     let img = images("photo", &photo)?;
@@ -94,7 +96,8 @@ pub(crate) fn edit_photo<'py>(
             let nets = match &weights {
                 Some(w) => matedit::nets::Nets::load(w)?,
                 None => matedit::nets::Nets::builtin()?,
-            };
+            }
+            .with_mirror(mirror);
             let renderer = matedit::Renderer::new(device)?;
             let object = if pointing.is_empty() {
                 mask.as_deref().into()

@@ -94,7 +94,7 @@ fn photos(args: &Args) -> Result<(), Failure> {
         );
         loaded.push((img, mask));
     }
-    let nets = Nets::builtin()?;
+    let nets = Nets::builtin()?.with_mirror(true);
     let renderer = Renderer::new(args.device)?;
     let options = PhotoOptions {
         steps: args.steps,

@@ -46,6 +46,9 @@ pub struct Args {
     /// Weights of the nets (default: the ones built in).
     #[arg(long, value_name = "FILE")]
     weights: Option<PathBuf>,
+    /// Run the nets on each photo only, not also on its mirror image (as `edit --no-mirror`).
+    #[arg(long)]
+    no_mirror: bool,
     /// Backend, as for `render`.
     #[arg(long, value_name = "auto|gpu|cpu|reference", default_value = "auto")]
     device: Device,
@@ -67,6 +70,7 @@ pub fn run(args: &Args) -> Result<(), Failure> {
         steps: args.steps,
         device: args.device,
         weights: args.weights.clone(),
+        mirror: !args.no_mirror,
     };
     let host = if args.host.contains(':') && !args.host.starts_with('[') {
         format!("[{}]", args.host)

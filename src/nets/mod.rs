@@ -147,17 +147,26 @@ impl Nets {
         self.predict_with(image, mask, self.mirror)
     }
 
-    /// [`Nets::predict`]; with `mirror`, each net also sees the image mirrored left to
-    /// right and the two answers are averaged, the mirrored one mirrored back: the
-    /// normals (renormalised), the mask logits, the material's weights and the light's
-    /// log (model.py's `Nets.forward(x, mask, mirror=True)`). Twice the time; on
-    /// held-out photo-like samples the normals are 0.8 degrees closer (docs/nets.md).
-    pub fn predict_with(
-        &self,
-        image: &Image,
-        mask: Option<&[bool]>,
-        mirror: bool,
-    ) -> Result<Prediction> {
+    /// The normals net's foreground probability per pixel, as [`Prediction::mask_prob`]
+    /// (mirrored as [`Nets::with_mirror`] set), without the material and light nets: what
+    /// finding an object needs.
+    pub fn mask_prob(&self, image: &Image, mask: Option<&[bool]>) -> Result<Vec<f32>> {
+        self.check(image, mask)?;
+        let all;
+        let mask = match mask {
+            Some(m) => m,
+            None => {
+                all = vec![true; image.pixels.len()];
+                &all
+            }
+        };
+        let (_, logits) = self.normals_net(&prepare(image, mask).0, self.mirror);
+        Ok(logits.into_iter().map(sigmoid).collect())
+    }
+
+    /// An image the nets can see (sides multiples of 2^(levels - 1), finite pixels) and a
+    /// mask of its size, or the error naming what is wrong.
+    fn check(&self, image: &Image, mask: Option<&[bool]>) -> Result<()> {
         let (w, h) = (image.width, image.height);
         let k = 1usize << (self.cfg.levels - 1);
         if w == 0 || h == 0 || w % k != 0 || h % k != 0 {
@@ -184,6 +193,22 @@ impl Nets {
                 w * h
             ));
         }
+        Ok(())
+    }
+
+    /// [`Nets::predict`]; with `mirror`, each net also sees the image mirrored left to
+    /// right and the two answers are averaged, the mirrored one mirrored back: the
+    /// normals (renormalised), the mask logits, the material's weights and the light's
+    /// log (model.py's `Nets.forward(x, mask, mirror=True)`). Twice the time; on
+    /// held-out photo-like samples the normals are 0.8 degrees closer (docs/nets.md).
+    pub fn predict_with(
+        &self,
+        image: &Image,
+        mask: Option<&[bool]>,
+        mirror: bool,
+    ) -> Result<Prediction> {
+        self.check(image, mask)?;
+        let (w, h) = (image.width, image.height);
         let (mask, first_prob) = match mask {
             Some(m) => (m.to_vec(), None),
             None => {

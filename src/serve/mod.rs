@@ -58,6 +58,8 @@ pub struct Config {
     pub device: Device,
     /// Weights of the nets (None: the built-in ones).
     pub weights: Option<std::path::PathBuf>,
+    /// The nets also see each photo mirrored ([`Nets::with_mirror`]).
+    pub mirror: bool,
 }
 
 impl Default for Config {
@@ -70,6 +72,7 @@ impl Default for Config {
             steps: PhotoOptions::default().steps,
             device: Device::Auto,
             weights: None,
+            mirror: true,
         }
     }
 }
@@ -135,7 +138,8 @@ pub fn start(config: Config, addr: &str) -> Result<Handle> {
     let nets = match &config.weights {
         Some(w) => Nets::load(w)?,
         None => Nets::builtin()?,
-    };
+    }
+    .with_mirror(config.mirror);
     let renderer = Renderer::new(config.device)?;
     let listener = std::net::TcpListener::bind(addr)
         .map_err(|e| Error::Invalid(format!("serve: cannot listen on {addr}: {e}")))?;

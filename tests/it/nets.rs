@@ -370,3 +370,33 @@ fn bad_inputs_are_refused() {
         .to_string();
     assert!(e.contains("mask: 10 values, expected 64"), "{e}");
 }
+
+/// `mask_prob` is `predict`'s mask probability without the material and light nets, with
+/// and without a mask, mirrored or not.
+#[test]
+fn mask_prob_is_the_prediction_s() {
+    let all = read_all(&data("parity.safetensors"));
+    let image = |case: &str| {
+        let (shape, pixels) = &all[&format!("{case}.image")];
+        Image {
+            width: shape[1],
+            height: shape[0],
+            pixels: pixels
+                .chunks_exact(3)
+                .map(|c| [c[0] as f32, c[1] as f32, c[2] as f32])
+                .collect(),
+        }
+    };
+    let disc: Vec<bool> = all["masked.mask_in"].1.iter().map(|&v| v != 0.0).collect();
+    for mirror in [false, true] {
+        let nets = Nets::load(&data("weights.safetensors"))
+            .expect("loads the weights")
+            .with_mirror(mirror);
+        for (case, mask) in [("masked", Some(&disc[..])), ("unmasked", None)] {
+            let img = image(case);
+            let p = nets.predict(&img, mask).expect("predicts");
+            let prob = nets.mask_prob(&img, mask).expect("predicts");
+            assert_eq!(prob, p.mask_prob, "{case}, mirror {mirror}");
+        }
+    }
+}

@@ -197,7 +197,7 @@ fn find_object(
     let input = crop_image(photo, whole, n);
     let passes = MASK_PASSES + 1;
     progress(Stage::Mask { pass: 1, passes });
-    let mut prob = nets.predict(&input, None)?.mask_prob;
+    let mut prob = nets.mask_prob(&input, None)?;
     // the nets were trained on images normalised by the object's mean, and the first
     // pass can only normalise by the whole image's: normalise by the mask found
     // and find it again, a few times
@@ -207,7 +207,7 @@ fn find_object(
             break;
         }
         progress(Stage::Mask { pass, passes });
-        prob = nets.predict(&input, Some(&m))?.mask_prob;
+        prob = nets.mask_prob(&input, Some(&m))?;
     }
     let found = paste_scalar(&prob, n, whole, w, h)
         .iter()

@@ -139,10 +139,10 @@ pub fn segment_object(
                 && y < bounds.y1 as f64
         })
         .collect();
-    let mut prob = nets.predict(&input, Some(&inside))?.mask_prob;
+    let mut prob = nets.mask_prob(&input, Some(&inside))?;
     let found: Vec<bool> = prob.iter().map(|&p| p > 0.5).collect();
     if found.iter().any(|&m| m) {
-        prob = nets.predict(&input, Some(&found))?.mask_prob;
+        prob = nets.mask_prob(&input, Some(&found))?;
     }
     let prior = |x: f64, y: f64| -> f32 {
         let (u, v) = (
