@@ -52,8 +52,12 @@ pub struct Args {
     #[arg(long, value_name = "S")]
     seed: Option<u64>,
     /// Face normals (flat shading) instead of interpolated vertex normals.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "crease")]
     flat: bool,
+    /// A mesh file without normals of its own gets its vertex normals smoothed only across
+    /// edges whose faces meet within DEG degrees: sharper edges stay sharp (docs/shapes.md).
+    #[arg(long, value_name = "DEG", value_parser = parse_crease)]
+    crease: Option<f64>,
     /// Fraction of the frame's half-size left empty on each side of the object.
     #[arg(long, value_name = "FRAC", default_value_t = shapes::DEFAULT_MARGIN, value_parser = parse_margin)]
     margin: f64,
@@ -102,7 +106,14 @@ pub fn run(args: &Args) -> Result<(), Failure> {
     }
     let seed = args.seed.unwrap_or(0);
     let (mesh, source) = match (&args.mesh, &args.shape) {
-        (Some(path), _) => (shapes::load_mesh(path)?, path.display().to_string()),
+        (Some(path), _) => {
+            let mesh = shapes::load_mesh(path)?;
+            let mesh = match args.crease {
+                Some(degrees) if mesh.normals.is_none() => mesh.creased(degrees),
+                _ => mesh,
+            };
+            (mesh, path.display().to_string())
+        }
         (None, Some(shape)) => (
             shape.mesh(seed),
             format!("{shape} (seed {})", shape.seed.unwrap_or(seed)),
@@ -155,4 +166,12 @@ pub fn run(args: &Args) -> Result<(), Failure> {
         eprintln!("matedit: wrote {} ({width}x{height})", p.display());
     }
     Ok(())
+}
+
+/// `--crease`: an angle in (0, 180] degrees.
+fn parse_crease(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(v) if v > 0.0 && v <= 180.0 => Ok(v),
+        _ => Err(format!("{s}: expected an angle in (0, 180] degrees")),
+    }
 }

@@ -169,6 +169,58 @@ impl Mesh {
             .collect()
     }
 
+    /// The mesh with its sharp edges kept, as a modeller's "auto smooth" does: each corner
+    /// of a triangle gets the area-weighted mean of the face normals, around its vertex, of
+    /// the triangles whose face normal is within `degrees` of its own (windings made to
+    /// agree first, [`Mesh::winding_signs`]), and a vertex is split into one per normal
+    /// its corners get. A cube's eight corners become 24, its faces flat; a finely
+    /// tessellated sphere keeps [`Mesh::smooth_normals`]. The given normals, if any, are
+    /// replaced. A corner of a triangle without an area gets [0, 0, 0] (the rasteriser then
+    /// takes the face normal).
+    pub fn creased(&self, degrees: f64) -> Mesh {
+        let signs = self.winding_signs();
+        // unnormalised face normals (their length is twice the area) and unit ones
+        let face: Vec<V3> = (self.triangles.iter().zip(&signs))
+            .map(|(tri, &sign)| {
+                let [a, b, c] = tri.map(|v| widen(self.positions[v as usize]));
+                scale(cross(sub(b, a), sub(c, a)), sign)
+            })
+            .collect();
+        let dir: Vec<Option<V3>> = face.iter().map(|&f| unit(f)).collect();
+        let mut around: Vec<Vec<u32>> = vec![Vec::new(); self.positions.len()];
+        for (t, tri) in self.triangles.iter().enumerate() {
+            for &v in tri {
+                around[v as usize].push(t as u32);
+            }
+        }
+        let cos = degrees.to_radians().cos();
+        let mut index = std::collections::HashMap::new();
+        let (mut positions, mut normals) = (Vec::new(), Vec::new());
+        let triangles = (self.triangles.iter().enumerate())
+            .map(|(t, tri)| {
+                tri.map(|v| {
+                    let n = dir[t].and_then(|own| {
+                        let near = around[v as usize]
+                            .iter()
+                            .filter(|&&u| dir[u as usize].is_some_and(|d| dot(d, own) >= cos));
+                        unit(near.fold([0.0; 3], |sum, &u| add(sum, face[u as usize])))
+                    });
+                    let n = n.map_or([0.0f32; 3], |n| n.map(|c| c as f32));
+                    *index.entry((v, n.map(f32::to_bits))).or_insert_with(|| {
+                        positions.push(self.positions[v as usize]);
+                        normals.push(n);
+                        (positions.len() - 1) as u32
+                    })
+                })
+            })
+            .collect();
+        Mesh {
+            positions,
+            normals: Some(normals),
+            triangles,
+        }
+    }
+
     /// Per triangle, 1 or -1: the signs that make the windings agree, found by walking from
     /// each connected part's first triangle across the edges that exactly two triangles
     /// share (agreeing windings run a shared edge in opposite directions). All 1 where the
@@ -340,6 +392,61 @@ mod tests {
         // relative to the first triangle, the two rewound ones get -1
         assert_eq!(signs, vec![1.0, -1.0, 1.0, -1.0]);
         assert_eq!(shuffled.smooth_normals(), m.smooth_normals());
+    }
+
+    #[test]
+    fn a_creased_cube_has_flat_faces() {
+        // a cube whose faces share their corners, as CGAL's cube.off
+        let p = |x: f32, y: f32, z: f32| [x, y, z];
+        let positions = vec![
+            p(-1., -1., -1.),
+            p(1., -1., -1.),
+            p(1., 1., -1.),
+            p(-1., 1., -1.),
+            p(-1., -1., 1.),
+            p(1., -1., 1.),
+            p(1., 1., 1.),
+            p(-1., 1., 1.),
+        ];
+        let quads = [
+            [0, 3, 2, 1],
+            [4, 5, 6, 7],
+            [0, 1, 5, 4],
+            [2, 3, 7, 6],
+            [1, 2, 6, 5],
+            [0, 4, 7, 3],
+        ];
+        let triangles = quads
+            .iter()
+            .flat_map(|q| [[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
+            .collect();
+        let m = Mesh::new(positions, None, triangles).unwrap();
+        let c = m.creased(40.0);
+        assert_eq!(
+            c.positions.len(),
+            24,
+            "each corner of the cube split in three"
+        );
+        let normals = c.normals.as_ref().unwrap();
+        for tri in &c.triangles {
+            let [a, b, d] = tri.map(|v| widen(c.positions[v as usize]));
+            let f = unit(cross(sub(b, a), sub(d, a))).unwrap();
+            for &v in tri {
+                let n = widen(normals[v as usize]);
+                assert!(
+                    (dot(n, f).abs() - 1.0).abs() < 1e-6,
+                    "a flat face: {n:?} against {f:?}"
+                );
+            }
+        }
+        // above every dihedral angle of the cube (90 degrees), the smooth normals again
+        let all = m.creased(100.0);
+        assert_eq!(all.positions.len(), 8);
+        let smooth = m.smooth_normals();
+        for (n, q) in all.normals.unwrap().iter().zip(&all.positions) {
+            let v = m.positions.iter().position(|p| p == q).unwrap();
+            assert!((dot(widen(*n), widen(smooth[v])) - 1.0).abs() < 1e-6);
+        }
     }
 
     #[test]

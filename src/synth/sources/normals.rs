@@ -23,6 +23,7 @@ struct RawNormals {
     file: Option<String>,
     folder: Option<String>,
     views: Option<Value>,
+    crease: Option<f64>,
     weight: Option<f64>,
 }
 
@@ -80,6 +81,7 @@ pub(in crate::synth) fn normals(
                 file: Some(s.clone()),
                 folder: None,
                 views: None,
+                crease: None,
                 weight: None,
             },
             _ => serde_json::from_value(item.clone()).map_err(|e| at(serde_message(&e)))?,
@@ -98,6 +100,16 @@ pub(in crate::synth) fn normals(
         .map_err(at)?;
         if r.views.is_some() && kind < 4 {
             return Err(at("\"views\" goes with \"shape\" or \"mesh\" only".into()));
+        }
+        if r.crease.is_some() && kind != 5 {
+            return Err(at("\"crease\" goes with \"mesh\" only".into()));
+        }
+        if let Some(c) = r.crease
+            && !(c > 0.0 && c <= 180.0)
+        {
+            return Err(at(format!(
+                "crease: {c} is not an angle in (0, 180] degrees"
+            )));
         }
         let views = Views::parse(r.views.as_ref()).map_err(at)?;
         let weight = weight_of(r.weight).map_err(at)?;
@@ -137,7 +149,12 @@ pub(in crate::synth) fn normals(
                     files_of(base, r.mesh, None, &exts).map_err(|m| at(format!("mesh: {m}")))?;
                 let mut meshes = Vec::with_capacity(files.len());
                 for f in files {
-                    let m = crate::shapes::load_mesh(&f.path).map_err(|e| at(e.to_string()))?;
+                    let mut m = crate::shapes::load_mesh(&f.path).map_err(|e| at(e.to_string()))?;
+                    if let Some(degrees) = r.crease
+                        && m.normals.is_none()
+                    {
+                        m = m.creased(degrees);
+                    }
                     hash_file(hasher, &f.label, &f.path).map_err(|e| at(e.to_string()))?;
                     meshes.push((f.label, m));
                 }

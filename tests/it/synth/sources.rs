@@ -117,3 +117,76 @@ fn meshes_are_a_source_turned_per_sample() {
         "{err}"
     );
 }
+
+#[test]
+fn a_crease_keeps_a_mesh_s_edges_sharp() {
+    // a cube whose faces share their eight corners (as CGAL's cube.off): its smooth normals
+    // bend across every face; with "crease" each visible face has one normal
+    let t = dir();
+    std::fs::write(
+        t.path().join("cube.off"),
+        "OFF\n8 6 0\n-1 -1 -1\n1 -1 -1\n1 1 -1\n-1 1 -1\n-1 -1 1\n1 -1 1\n1 1 1\n-1 1 1\n\
+         4 0 3 2 1\n4 4 5 6 7\n4 0 1 5 4\n4 2 3 7 6\n4 1 2 6 5\n4 0 4 7 3\n",
+    )
+    .unwrap();
+    let spec = t.path().join("spec.json");
+    let write = |extra: &str| {
+        let body = format!(
+            r#"{{"count": 2, "seed": 5, "image_size": 24, "env_size": "8x16",
+               "normals": [{{"mesh": "cube.off", "views": [[35, 25, 0]]{extra}}}],
+               "envs": [{{"procedural": "overcast"}}], "materials": [{{"preset": "gold"}}]}}"#
+        );
+        std::fs::write(&spec, body).unwrap();
+    };
+    let distinct = |extra: &str| {
+        write(extra);
+        let x = synth::Spec::load(&spec).unwrap().sample(0).unwrap();
+        let mut seen: Vec<[i32; 3]> = (x.scene.normals.normals.iter())
+            .filter(|n| n.iter().any(|&c| c != 0.0))
+            .map(|n| n.map(|c| (c * 1000.0).round() as i32))
+            .collect();
+        seen.sort_unstable();
+        seen.dedup();
+        let on = (x.scene.normals.normals.iter()).filter(|n| n.iter().any(|&c| c != 0.0));
+        (seen.len(), on.count())
+    };
+    let (smooth, fg) = distinct("");
+    let (creased, fg_creased) = distinct(r#", "crease": 40"#);
+    assert_eq!(fg, fg_creased, "the same silhouette");
+    assert!(smooth > 50, "{smooth} distinct smooth normals");
+    assert!(
+        creased <= 3,
+        "{creased} distinct normals on three visible faces"
+    );
+    for (extra, what) in [
+        (
+            r#", "crease": 0"#,
+            "crease: 0 is not an angle in (0, 180] degrees",
+        ),
+        (
+            r#", "crease": 200"#,
+            "crease: 200 is not an angle in (0, 180] degrees",
+        ),
+    ] {
+        write(extra);
+        let o = synth_cmd(&spec, &t.path().join("bad"), &[])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        assert!(err.contains("normals[0]") && err.contains(what), "{err}");
+        assert_eq!(err.trim().lines().count(), 1, "{err}");
+    }
+    std::fs::write(
+        &spec,
+        r#"{"count": 2, "image_size": 24, "env_size": "8x16",
+            "normals": [{"shape": "box", "crease": 30}],
+            "envs": [{"procedural": "overcast"}], "materials": [{"preset": "gold"}]}"#,
+    )
+    .unwrap();
+    let o = synth_cmd(&spec, &t.path().join("bad2"), &[])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("\"crease\" goes with \"mesh\" only"), "{err}");
+}

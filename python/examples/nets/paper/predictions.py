@@ -4,7 +4,10 @@ light (tonemapped lat-long maps), the predicted and true material on a sphere un
 probe light, I' = R(n', m', L'), O' = R(n', m_t, L') and the true edit O = R(n, m_t, L), m_t
 the next sample's material.
 
-    python predictions.py WEIGHTS DATA OUT.png [--count N]
+    python predictions.py WEIGHTS DATA OUT.png [--count N] [--samples I,J,...] [--mirror]
+
+--samples shows those samples (by their place in DATA) instead of the first N; --mirror runs
+the nets as `matedit edit` does, averaged with the mirrored image (model.Nets.forward).
 """
 
 import argparse
@@ -41,15 +44,23 @@ def main() -> None:
     ap.add_argument("data")
     ap.add_argument("out")
     ap.add_argument("--count", type=int, default=8)
+    ap.add_argument("--samples", help="comma-separated sample numbers to show (default: the first COUNT)")
+    ap.add_argument("--mirror", action="store_true")
     a = ap.parse_args()
     nets = load(a.weights).eval()
-    batch = collate([s for _, s in zip(range(a.count + 1), samples(a.data))])
+    if a.samples:
+        chosen = [int(i) for i in a.samples.split(",")]
+        every = {i: s for i, s in enumerate(samples(a.data)) if i in set(chosen)}
+        batch = collate([every[i] for i in chosen])
+        a.count = len(chosen)
+    else:
+        batch = collate([s for _, s in zip(range(a.count + 1), samples(a.data))])
     image, mask = batch["image"], batch["mask"]
     target, s = normalise(image, mask)
     env_t = batch["env"] / s[:, None, None, None]
     probe = probe_scene(32, nets.cfg.env_height, nets.cfg.env_width)
     with torch.no_grad():
-        out = nets(prepare(image, mask), mask)
+        out = nets(prepare(image, mask), mask, a.mirror)
         n_pred = out["normals"] * mask[..., None]
         m_t = batch["ctrl"].roll(-1, 0)  # the next sample's material
         i_p = matedit.torch.render(n_pred, out["env"], out["ctrl"])
