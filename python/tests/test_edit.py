@@ -33,6 +33,12 @@ def test_edit_a_photo():
     # an 8-bit sRGB photo and --like
     r2 = matedit.edit((np.clip(img, 0, 1) * 255).astype(np.uint8), like=img, mask=mask, like_mask=mask, steps=3)
     assert r2["edit"].dtype == np.float32
+    # the nets run mirrored unless told not to: the predictions differ, both valid
+    plain = matedit.edit(img, "pvc", mask=mask, steps=0, mirror=False)
+    mirrored = matedit.edit(img, "pvc", mask=mask, steps=0)
+    assert np.isfinite(plain["predicted_material"]).all() and np.isfinite(mirrored["predicted_material"]).all()
+    assert not np.allclose(plain["predicted_material"], mirrored["predicted_material"])
+    assert np.array_equal(mirrored["predicted_material"], r["predicted_material"])
 
 
 def test_bad_inputs_raise_value_error():
