@@ -48,6 +48,21 @@ pub(super) fn crop_image(photo: &Image, crop: Crop, n: usize) -> Image {
     raster::resize(&raster::crop(photo, crop), n, n)
 }
 
+/// Values at `n` x `n` over `crop`, bilinear at the photo's pixels (0 off the crop).
+pub(super) fn paste_scalar(values: &[f32], n: usize, crop: Crop, w: usize, h: usize) -> Vec<f32> {
+    let mut out = vec![0.0; w * h];
+    let f = n as f64 / crop.size as f64;
+    for (i, o) in out.iter_mut().enumerate() {
+        let u = ((i % w) as i64 - crop.x0) as f64 + 0.5;
+        let v = ((i / w) as i64 - crop.y0) as f64 + 0.5;
+        if u < 0.0 || v < 0.0 || u >= crop.size as f64 || v >= crop.size as f64 {
+            continue;
+        }
+        *o = raster::bilinear_scalar(values, n, n, u * f - 0.5, v * f - 0.5);
+    }
+    out
+}
+
 /// The nets' normals (n x n over the crop) at the crop's pixels: bilinear, renormalised,
 /// on the object only (`mask`: the crop's pixels; facing the camera where the nets saw
 /// background).
