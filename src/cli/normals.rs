@@ -109,8 +109,8 @@ pub fn run(args: &Args) -> Result<(), Failure> {
         (Some(path), _) => {
             let mesh = shapes::load_mesh(path)?;
             let mesh = match args.crease {
-                Some(degrees) if mesh.normals.is_none() => mesh.creased(degrees),
-                _ => mesh,
+                Some(degrees) => mesh.creased(degrees),
+                None => mesh,
             };
             (mesh, path.display().to_string())
         }
@@ -170,8 +170,6 @@ pub fn run(args: &Args) -> Result<(), Failure> {
 
 /// `--crease`: an angle in (0, 180] degrees.
 fn parse_crease(s: &str) -> Result<f64, String> {
-    match s.parse::<f64>() {
-        Ok(v) if v > 0.0 && v <= 180.0 => Ok(v),
-        _ => Err(format!("{s}: expected an angle in (0, 180] degrees")),
-    }
+    let v: f64 = s.parse().map_err(|_| format!("'{s}' is not a number"))?;
+    shapes::check_crease(v)
 }

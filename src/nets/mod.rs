@@ -286,9 +286,7 @@ impl Nets {
             scale: s,
         })
     }
-}
 
-impl Nets {
     /// The normals net's (normals, mask logits) of x; with `mirror`, averaged with those of
     /// the mirrored image (mirrored back: x negated, normals renormalised).
     fn normals_net(&self, x: &Planes, mirror: bool) -> (Vec<[f32; 3]>, Vec<f32>) {

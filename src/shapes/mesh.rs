@@ -5,6 +5,15 @@ use rayon::slice::ParallelSliceMut;
 
 use crate::error::{Error, Result};
 
+/// `degrees` if it is a crease angle ([`Mesh::creased`]): in (0, 180]; else the message.
+pub fn check_crease(degrees: f64) -> std::result::Result<f64, String> {
+    if degrees > 0.0 && degrees <= 180.0 {
+        Ok(degrees)
+    } else {
+        Err(format!("{degrees} is not an angle in (0, 180] degrees"))
+    }
+}
+
 /// A triangle mesh. Triangles index `positions` (and `normals`, which, when given, has one
 /// normal per position). Winding does not matter: the rasteriser turns every normal
 /// towards the viewer.
@@ -174,10 +183,14 @@ impl Mesh {
     /// the triangles whose face normal is within `degrees` of its own (windings made to
     /// agree first, [`Mesh::winding_signs`]), and a vertex is split into one per normal
     /// its corners get. A cube's eight corners become 24, its faces flat; a finely
-    /// tessellated sphere keeps [`Mesh::smooth_normals`]. The given normals, if any, are
-    /// replaced. A corner of a triangle without an area gets [0, 0, 0] (the rasteriser then
-    /// takes the face normal).
+    /// tessellated sphere keeps [`Mesh::smooth_normals`]. A mesh with normals of its own
+    /// keeps them (returned as it is). A corner of a triangle without an area gets
+    /// [0, 0, 0] (the rasteriser then takes the face normal). `degrees`: see
+    /// [`check_crease`].
     pub fn creased(&self, degrees: f64) -> Mesh {
+        if self.normals.is_some() {
+            return self.clone();
+        }
         let signs = self.winding_signs();
         // unnormalised face normals (their length is twice the area) and unit ones
         let face: Vec<V3> = (self.triangles.iter().zip(&signs))

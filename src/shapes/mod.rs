@@ -41,7 +41,7 @@ use crate::normals::loader_stable_unit;
 use crate::scene::NormalMap;
 
 pub use load::load_mesh;
-pub use mesh::Mesh;
+pub use mesh::{Mesh, check_crease};
 pub use procedural::{Shape, ShapeKind};
 pub use view::{DEFAULT_MARGIN, Rotation, View};
 

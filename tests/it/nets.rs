@@ -111,16 +111,7 @@ fn check_cases(nets: &Nets, file: &Path, cases: &[&str]) {
     let all = read_all(file);
     for &case in cases {
         let get = |k: &str| &all[&format!("{case}.{k}")];
-        let (shape, pixels) = get("image");
-        let (h, w) = (shape[0], shape[1]);
-        let image = Image {
-            width: w,
-            height: h,
-            pixels: pixels
-                .chunks_exact(3)
-                .map(|c| [c[0] as f32, c[1] as f32, c[2] as f32])
-                .collect(),
-        };
+        let image = case_image(&all, case);
         let mask_in: Option<Vec<bool>> = all
             .get(&format!("{case}.mask_in"))
             .map(|(_, m)| m.iter().map(|&v| v != 0.0).collect());
@@ -184,6 +175,19 @@ fn check_cases(nets: &Nets, file: &Path, cases: &[&str]) {
         if case == "black" {
             assert_eq!(p.scale, 1.0, "a black object keeps its image");
         }
+    }
+}
+
+/// Case `case`'s input image in a parity file read by [`read_all`].
+fn case_image(all: &HashMap<String, (Vec<usize>, Vec<f64>)>, case: &str) -> Image {
+    let (shape, pixels) = &all[&format!("{case}.image")];
+    Image {
+        width: shape[1],
+        height: shape[0],
+        pixels: pixels
+            .chunks_exact(3)
+            .map(|c| [c[0] as f32, c[1] as f32, c[2] as f32])
+            .collect(),
     }
 }
 
@@ -376,24 +380,13 @@ fn bad_inputs_are_refused() {
 #[test]
 fn mask_prob_is_the_prediction_s() {
     let all = read_all(&data("parity.safetensors"));
-    let image = |case: &str| {
-        let (shape, pixels) = &all[&format!("{case}.image")];
-        Image {
-            width: shape[1],
-            height: shape[0],
-            pixels: pixels
-                .chunks_exact(3)
-                .map(|c| [c[0] as f32, c[1] as f32, c[2] as f32])
-                .collect(),
-        }
-    };
     let disc: Vec<bool> = all["masked.mask_in"].1.iter().map(|&v| v != 0.0).collect();
     for mirror in [false, true] {
         let nets = Nets::load(&data("weights.safetensors"))
             .expect("loads the weights")
             .with_mirror(mirror);
         for (case, mask) in [("masked", Some(&disc[..])), ("unmasked", None)] {
-            let img = image(case);
+            let img = case_image(&all, case);
             let p = nets.predict(&img, mask).expect("predicts");
             let prob = nets.mask_prob(&img, mask).expect("predicts");
             assert_eq!(prob, p.mask_prob, "{case}, mirror {mirror}");

@@ -250,7 +250,11 @@ class MaterialNet(nn.Module):
         self.register_buffer("is_exponent", torch.arange(108) // 6 % 2 == 1, persistent=False)
 
     def forward(self, x: torch.Tensor, mask: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        return self.mix(torch.softmax(self.net(x, mask), -1))
+        return self.mix(self.weights(x, mask))
+
+    def weights(self, x: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+        """The softmax weights (B, K) of the basis presets."""
+        return torch.softmax(self.net(x, mask), -1)
 
     def mix(self, w: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """(ctrl, w) of softmax weights w (B, K)."""
@@ -309,11 +313,11 @@ class Nets(nn.Module):
         n, logits = self.mask_and_normals(x, mirror)
         if mask is None:
             mask = logits > 0
-        w = torch.softmax(self.material.net(x, mask), -1)
+        w = self.material.weights(x, mask)
         log_env = self.light.log(x, mask)
         if mirror:
             xm, mm = x.flip(-1), mask.flip(-1)
-            w = (w + torch.softmax(self.material.net(xm, mm), -1)) / 2
+            w = (w + self.material.weights(xm, mm)) / 2
             log_env = (log_env + mirror_env(self.light.log(xm, mm))) / 2
         ctrl, w = self.material.mix(w)
         return {"normals": n, "mask_logits": logits, "ctrl": ctrl, "weights": w, "env": torch.exp(log_env)}

@@ -104,12 +104,8 @@ pub(in crate::synth) fn normals(
         if r.crease.is_some() && kind != 5 {
             return Err(at("\"crease\" goes with \"mesh\" only".into()));
         }
-        if let Some(c) = r.crease
-            && !(c > 0.0 && c <= 180.0)
-        {
-            return Err(at(format!(
-                "crease: {c} is not an angle in (0, 180] degrees"
-            )));
+        if let Some(c) = r.crease {
+            crate::shapes::check_crease(c).map_err(|m| at(format!("crease: {m}")))?;
         }
         let views = Views::parse(r.views.as_ref()).map_err(at)?;
         let weight = weight_of(r.weight).map_err(at)?;
@@ -150,9 +146,7 @@ pub(in crate::synth) fn normals(
                 let mut meshes = Vec::with_capacity(files.len());
                 for f in files {
                     let mut m = crate::shapes::load_mesh(&f.path).map_err(|e| at(e.to_string()))?;
-                    if let Some(degrees) = r.crease
-                        && m.normals.is_none()
-                    {
+                    if let Some(degrees) = r.crease {
                         m = m.creased(degrees);
                     }
                     hash_file(hasher, &f.label, &f.path).map_err(|e| at(e.to_string()))?;
