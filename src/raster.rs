@@ -59,6 +59,24 @@ pub fn bilinear_scalar(values: &[f32], w: usize, h: usize, x: f64, y: f64) -> f3
         + fy * ((1.0 - fx) * at(x0, y1) + fx * at(x1, y1))
 }
 
+/// A `w` x `h` raster of one channel at the pixel centres of a `width` x `height` one
+/// covering the same frame, bilinear ([`bilinear_scalar`]).
+pub fn resample_scalar(
+    values: &[f32],
+    w: usize,
+    h: usize,
+    width: usize,
+    height: usize,
+) -> Vec<f32> {
+    let (fx, fy) = (w as f64 / width as f64, h as f64 / height as f64);
+    (0..width * height)
+        .map(|i| {
+            let (x, y) = ((i % width) as f64 + 0.5, (i / width) as f64 + 0.5);
+            bilinear_scalar(values, w, h, x * fx - 0.5, y * fy - 0.5)
+        })
+        .collect()
+}
+
 /// Box-resamples `image` to `width` x `height`: each output pixel is the mean of the
 /// input pixels whose centres fall in it (the nearest one when none does).
 pub fn resize(image: &Image, width: usize, height: usize) -> Image {

@@ -111,6 +111,17 @@ def test_loss_falls_and_run_files(dataset):
     assert all(math.isfinite(v) for v in half.values()) and half != same, half
 
 
+
+def test_the_frame_the_nets_saw_is_kept_with_them(tmp_path):
+    # "square" unless said; `matedit edit` shows "photo" nets a photo at its own shape
+    nets = Nets(NetsConfig(width=8, levels=2, env_height=8, env_width=16, frame="photo"))
+    save(nets, tmp_path / "photo.safetensors")
+    assert load(tmp_path / "photo.safetensors").cfg.frame == "photo"
+    assert load().cfg.frame == "square"
+    assert load(EXAMPLES / "photo" / "weights" / "p16.safetensors").cfg.frame == "photo"
+    with pytest.raises(ValueError, match="frame: 'round' is not 'square' or 'photo'"):
+        Nets(replace(nets.cfg, frame="round"))
+
 def test_resume_reaches_the_uninterrupted_weights(dataset):
     # two DataLoader workers, so that the data position is tested across workers too
     path = write_config(dataset, "resume", steps=10, workers=2, render_loss=True)

@@ -32,7 +32,7 @@ use crate::spline::N_CTRL_POINTS;
 use layers::{GlobalNet, NormalsNet};
 use planes::{Planes, matmul};
 use weights::Weights;
-pub use weights::{FORMAT, NetsConfig};
+pub use weights::{FORMAT, Frame, NetsConfig};
 
 /// The fitted MERL materials the material net mixes (model.py's `N_MERL`).
 pub const N_MERL: usize = 90;

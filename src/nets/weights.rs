@@ -30,6 +30,22 @@ pub struct NetsConfig {
     pub basis: usize,
     /// The image side the nets were trained at: photos are analysed at it.
     pub image_size: usize,
+    /// How the nets saw whole photos in training (absent: [`Frame::Square`]).
+    pub frame: Frame,
+}
+
+/// How the nets saw whole photos in training, and so how an edit without a mask or a
+/// pointing shows them a photo to find the object in (docs/edit.md).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Frame {
+    /// Objects alone, centred in square frames on black or an environment: a photo is
+    /// padded to a square with black.
+    #[default]
+    Square,
+    /// Photo-like frames (a floor, the environment behind, clutter): a photo is shown at its
+    /// own shape.
+    Photo,
 }
 
 /// The number of presets a metadata `basis` names, 90 (all) for none.
@@ -51,6 +67,7 @@ impl Default for NetsConfig {
             env_width: 32,
             basis: super::N_MERL,
             image_size: 64,
+            frame: Frame::Square,
         }
     }
 }

@@ -13,10 +13,21 @@ use matedit::{Batch, Camera, Convention, Device, Renderer, Scene};
 /// A PNG photo of `shape` (its seed, turned) made of `preset` under the built-in sky,
 /// `size` pixels square, on a grey background; and its mask as a PNG.
 fn photo(dir: &Path, name: &str, shape: &str, preset: &str, size: usize) -> (PathBuf, PathBuf) {
+    wide_photo(dir, name, shape, preset, (size, size))
+}
+
+/// [`photo`], `width` x `height` pixels.
+fn wide_photo(
+    dir: &Path,
+    name: &str,
+    shape: &str,
+    preset: &str,
+    (width, height): (usize, usize),
+) -> (PathBuf, PathBuf) {
     let spec: Shape = shape.parse().unwrap();
     let view = View {
-        width: size,
-        height: size,
+        width,
+        height,
         camera: Camera::Orthographic,
         rotation: Rotation {
             yaw: 30.0,
@@ -52,7 +63,7 @@ fn photo(dir: &Path, name: &str, shape: &str, preset: &str, size: usize) -> (Pat
         io::png::encode_preview(&img, &Preview::default()).unwrap(),
     )
     .unwrap();
-    std::fs::write(&mpath, io::png::encode_mask(size, size, &mask).unwrap()).unwrap();
+    std::fs::write(&mpath, io::png::encode_mask(width, height, &mask).unwrap()).unwrap();
     (p, mpath)
 }
 
@@ -377,4 +388,64 @@ fn the_photos_own_material_gives_it_back() {
         }
     }
     assert!(psnr(&rendered) < psnr(&own));
+}
+
+/// The built-in nets' weights with their metadata's `frame` set to "photo".
+fn photo_frame_weights(dir: &Path) -> PathBuf {
+    let bytes = matedit::nets::BUILTIN_WEIGHTS;
+    let (_, meta) = safetensors::SafeTensors::read_metadata(bytes).unwrap();
+    let mut meta = meta.metadata().clone().unwrap();
+    let mut config: serde_json::Value = serde_json::from_str(&meta["config"]).unwrap();
+    config["frame"] = "photo".into();
+    meta.insert("config".into(), config.to_string());
+    let st = safetensors::SafeTensors::deserialize(bytes).unwrap();
+    let path = dir.join("photo_frame.safetensors");
+    safetensors::serialize_to_file(st.tensors(), Some(meta), &path).unwrap();
+    path
+}
+
+#[test]
+fn nets_of_photo_frames_see_a_photo_at_its_own_shape() {
+    // without a mask the nets find the object on the whole photo: nets whose weights say
+    // they saw photo-like frames see it at its own shape, not padded to a square
+    let tmp = tempfile::tempdir().unwrap();
+    let weights = photo_frame_weights(tmp.path());
+    for (name, shape, size) in [
+        ("wide", "blobby:seed=3", (160, 96)),
+        ("tall", "capsule:seed=1", (96, 160)),
+    ] {
+        let (p, p_mask) = wide_photo(tmp.path(), name, shape, "plastic-red", size);
+        let (_, _, truth) = io::load_mask(&p_mask).unwrap();
+        let found = |out: &Path, extra: &[&str]| {
+            let run = edit(&[p.as_os_str(), "--material".as_ref(), "gold".as_ref()])
+                .args(["-o".as_ref(), out.as_os_str()])
+                .args(["--steps", "2"])
+                .args(extra)
+                .output()
+                .unwrap();
+            run.status
+                .success()
+                .then(|| io::load_mask(&out.join("mask.png")).unwrap().2)
+        };
+        let framed = found(
+            &tmp.path().join(format!("{name}_photo")),
+            &["--weights", weights.to_str().unwrap()],
+        )
+        .expect("the object found");
+        let both = framed
+            .iter()
+            .zip(&truth)
+            .filter(|(a, b)| **a && **b)
+            .count();
+        let either = framed
+            .iter()
+            .zip(&truth)
+            .filter(|(a, b)| **a || **b)
+            .count();
+        let iou = both as f64 / either as f64;
+        assert!(iou > 0.9, "{name}: IoU {iou}");
+        // the same nets as they are (square frames) see it otherwise
+        let square = found(&tmp.path().join(format!("{name}_square")), &[]);
+        assert!(square.as_ref() != Some(&framed), "{name}");
+    }
 }

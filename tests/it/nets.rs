@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 
 use common::assert_close;
 use matedit::Image;
-use matedit::nets::{Nets, NetsConfig};
+use matedit::nets::{Frame, Nets, NetsConfig};
 use safetensors::SafeTensors;
 
 fn data(name: &str) -> PathBuf {
@@ -75,7 +75,8 @@ fn predictions_match_pytorch() {
             env_height: 8,
             env_width: 16,
             basis: 90,
-            image_size: 64
+            image_size: 64,
+            frame: Frame::Square,
         }
     );
     check_cases(
@@ -329,6 +330,24 @@ fn bad_weight_files_are_named() {
             .unwrap()
             .image_size(),
         64
+    );
+    // how the nets saw whole photos: square frames unless the metadata says "photo"
+    let framed = |name: &str, frame: &str| {
+        rewritten(dir.path(), name, |_, m| {
+            m.insert(
+                "config".into(),
+                format!(
+                    r#"{{"width": 8, "levels": 2, "env_height": 8, "env_width": 16, "frame": "{frame}"}}"#
+                ),
+            );
+        })
+    };
+    let photo = Nets::load(&framed("photo.safetensors", "photo")).unwrap();
+    assert_eq!(photo.config().frame, Frame::Photo);
+    let msg = load_error(&framed("round.safetensors", "round"));
+    assert!(
+        msg.contains("metadata config: unknown variant `round`, expected `square` or `photo`"),
+        "{msg}"
     );
     let msg = load_error(&sized("odd.safetensors", 63));
     assert!(

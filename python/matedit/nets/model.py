@@ -61,6 +61,10 @@ class NetsConfig:
     basis: list = field(default_factory=list)
     # the image side the nets were trained at (set by training): `matedit edit` runs them at it
     image_size: int = 64
+    # how the nets saw whole photos in training: "square" (objects centred on black or an
+    # environment) or "photo" (photo-like frames); an edit without a mask shows them a photo
+    # padded to a square or at its own shape (docs/edit.md)
+    frame: str = "square"
 
 
 def basis_names(cfg: "NetsConfig") -> list[str]:
@@ -298,6 +302,8 @@ class Nets(nn.Module):
 
     def __init__(self, cfg: NetsConfig):
         super().__init__()
+        if cfg.frame not in ("square", "photo"):
+            raise ValueError(f"frame: {cfg.frame!r} is not 'square' or 'photo'")
         self.cfg = cfg
         self.normals = NormalsNet(cfg)
         self.material = MaterialNet(cfg)

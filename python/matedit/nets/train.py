@@ -62,6 +62,7 @@ DEFAULTS = {
     "env_height": 16,
     "env_width": 32,
     "basis": [],  # the MERL presets the material net mixes (names); empty: all 90
+    "frame": "square",  # how the data frames whole photos (model.NetsConfig): "square" or "photo"
     "steps": 1000,
     "batch_size": 8,  # per process
     "lr": 1e-3,
@@ -294,10 +295,11 @@ def train(cfg: dict, out, resume: bool = False, stop_at: int | None = None, quie
     np.random.seed(cfg["seed"])
     random.seed(cfg["seed"])
 
-    nets = Nets(NetsConfig(**{k: cfg[k] for k in ("width", "levels", "env_height", "env_width", "basis")}))
+    sizes = ("width", "levels", "env_height", "env_width", "basis")
+    nets = Nets(NetsConfig(**{k: cfg[k] for k in sizes + ("frame",)}))
     if cfg["init"] and not resume:
-        start = load(cfg["init"])
-        if replace(start.cfg, image_size=nets.cfg.image_size) != nets.cfg:
+        start = load(cfg["init"])  # its sizes are the config's; what it saw may differ
+        if replace(start.cfg, image_size=nets.cfg.image_size, frame=nets.cfg.frame) != nets.cfg:
             raise ValueError(f"{cfg['init']}: its nets are {start.cfg}, the config asks for {nets.cfg}")
         nets.load_state_dict(start.state_dict())
     opt = torch.optim.AdamW(nets.parameters(), lr=cfg["lr"], weight_decay=cfg["weight_decay"])

@@ -18,7 +18,7 @@ use crate::edit::inputs::Inputs;
 use crate::edit::loss::psnr;
 use crate::edit::options::{Light, Options};
 use crate::error::{Result, invalid};
-use crate::nets::Nets;
+use crate::nets::{Frame, Nets};
 use crate::raster::{self, Crop};
 use crate::{Accuracy, EnvMap, Image, Material, NormalMap, Renderer};
 
@@ -178,10 +178,28 @@ fn work_factor(size: usize, object: usize, n: usize, options: &PhotoOptions) -> 
     side.max(pixels).max(1)
 }
 
-/// The object as the nets find it on the whole photo padded to a square, at `n` x `n`:
-/// [`MASK_PASSES`] + 1 passes, each after the first on the photo normalised by the mask of
-/// the pass before; an error if what is found is empty, full, a speck or black, or when no
-/// single object stands out ([`single_object`]).
+/// The size (width, height) a `w` x `h` photo is shown to nets of input side `n` at: `n`
+/// on its longer side, the shorter in proportion, rounded to a multiple of `k` (at least
+/// `k`).
+fn nets_shape(w: usize, h: usize, n: usize, k: usize) -> (usize, usize) {
+    let short = |a: usize, b: usize| {
+        let v = (n as f64 * a as f64 / b as f64 / k as f64).round() as usize * k;
+        v.clamp(k, n)
+    };
+    if w >= h {
+        (n, short(h, w))
+    } else {
+        (short(w, h), n)
+    }
+}
+
+/// The object as the nets find it on the whole photo, shown to them as they saw photos in
+/// training ([`Frame`]): padded to a square, `n` x `n`, or at its own shape with `n` pixels
+/// on its longer side (the shorter a multiple of the nets' 2^(levels - 1)); photo-like nets
+/// never saw black bands above and below a photo, and with them took the background beside
+/// the object for it (docs/edit.md). [`MASK_PASSES`] + 1 passes, each after the first on the
+/// photo normalised by the mask of the pass before; an error if what is found is empty,
+/// full, a speck or black, or when no single object stands out ([`single_object`]).
 fn find_object(
     nets: &Nets,
     photo: &Image,
@@ -189,12 +207,19 @@ fn find_object(
     progress: &mut dyn FnMut(Stage),
 ) -> Result<Vec<bool>> {
     let (w, h) = (photo.width, photo.height);
+    let frame = nets.config().frame;
     let whole = Crop {
         x0: (w as i64 - w.max(h) as i64) / 2,
         y0: (h as i64 - w.max(h) as i64) / 2,
         size: w.max(h),
     };
-    let input = crop_image(photo, whole, n);
+    let input = match frame {
+        Frame::Square => crop_image(photo, whole, n),
+        Frame::Photo => {
+            let (nw, nh) = nets_shape(w, h, n, 1 << (nets.config().levels - 1));
+            raster::resize(photo, nw, nh)
+        }
+    };
     let passes = MASK_PASSES + 1;
     progress(Stage::Mask { pass: 1, passes });
     let mut prob = nets.mask_prob(&input, None)?;
@@ -209,10 +234,11 @@ fn find_object(
         progress(Stage::Mask { pass, passes });
         prob = nets.mask_prob(&input, Some(&m))?;
     }
-    let found = paste_scalar(&prob, n, whole, w, h)
-        .iter()
-        .map(|&a| a > 0.5)
-        .collect::<Vec<_>>();
+    let prob = match frame {
+        Frame::Square => paste_scalar(&prob, n, whole, w, h),
+        Frame::Photo => raster::resample_scalar(&prob, input.width, input.height, w, h),
+    };
+    let found: Vec<bool> = prob.iter().map(|&a| a > 0.5).collect();
     let lit = found
         .iter()
         .zip(&photo.pixels)
@@ -225,4 +251,18 @@ fn find_object(
         })?;
     single_object(&found, w, h)?;
     Ok(found)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::nets_shape;
+
+    #[test]
+    fn the_nets_see_a_photo_at_its_shape() {
+        assert_eq!(nets_shape(320, 240, 128, 8), (128, 96));
+        assert_eq!(nets_shape(240, 320, 64, 8), (48, 64));
+        assert_eq!(nets_shape(600, 400, 64, 8), (64, 40)); // 42.7 rounds to 40
+        assert_eq!(nets_shape(500, 500, 64, 8), (64, 64));
+        assert_eq!(nets_shape(8000, 16, 64, 8), (64, 8)); // never below 8
+    }
 }

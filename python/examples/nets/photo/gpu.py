@@ -7,6 +7,7 @@ import pathlib as _pathlib
 import matedit as _matedit
 
 levels = 4
+frame = "photo"  # photo-like frames: an edit shows the nets a photo at its own shape
 steps = 16000
 batch_size = 64
 warmup = 200
