@@ -50,8 +50,20 @@ fn photo(dir: &Path) -> (PathBuf, Vec<bool>, Vec<bool>) {
     (path, disc, tab)
 }
 
+fn test_weights() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/nets/weights.safetensors")
+}
+
 fn edit(photo: &Path, out: &Path, extra: &[&str]) -> assert_cmd::assert::Assert {
-    let weights = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/nets/weights.safetensors");
+    edit_with(&test_weights(), photo, out, extra)
+}
+
+fn edit_with(
+    weights: &Path,
+    photo: &Path,
+    out: &Path,
+    extra: &[&str],
+) -> assert_cmd::assert::Assert {
     assert_cmd::cargo::cargo_bin_cmd!("matedit")
         .arg("edit")
         .arg(photo)
@@ -89,6 +101,48 @@ fn a_box_cuts_the_object_out_of_clutter() {
         serde_json::json!([55, 35, 195, 145])
     );
     assert!(report["seconds"]["segment"].as_f64().unwrap() > 0.0);
+}
+
+/// The test nets with the mask's bias at -100: they see no object anywhere.
+fn blind_weights(dir: &Path) -> PathBuf {
+    let bytes = std::fs::read(test_weights()).unwrap();
+    let (_, meta) = safetensors::SafeTensors::read_metadata(&bytes).unwrap();
+    let st = safetensors::SafeTensors::deserialize(&bytes).unwrap();
+    let mut tensors: Vec<_> = st
+        .tensors()
+        .into_iter()
+        .map(|(n, v)| (n, v.dtype(), v.shape().to_vec(), v.data().to_vec()))
+        .collect();
+    let bias = tensors
+        .iter_mut()
+        .find(|(n, ..)| n == "normals.head.bias")
+        .unwrap();
+    assert_eq!((bias.1, &bias.2[..]), (safetensors::Dtype::F32, &[4][..]));
+    bias.3[12..16].copy_from_slice(&(-100f32).to_le_bytes());
+    let views: Vec<_> = tensors
+        .iter()
+        .map(|(n, d, s, b)| {
+            let view = safetensors::tensor::TensorView::new(*d, s.clone(), b).unwrap();
+            (n.clone(), view)
+        })
+        .collect();
+    let path = dir.join("blind.safetensors");
+    safetensors::serialize_to_file(views, meta.metadata().clone(), &path).unwrap();
+    path
+}
+
+#[test]
+fn a_box_finds_the_object_where_the_nets_see_none() {
+    // the nets' mask is a prior of the cut; where it leaves nothing in the box, the cut
+    // goes by the photo's colours alone
+    let tmp = tempfile::tempdir().unwrap();
+    let (p, disc, tab) = photo(tmp.path());
+    let truth: Vec<bool> = disc.iter().zip(&tab).map(|(a, b)| *a || *b).collect();
+    let blind = blind_weights(tmp.path());
+    let out = tmp.path().join("blind");
+    edit_with(&blind, &p, &out, &["--box", "55,35,195,145"]).success();
+    let j = iou(&mask(&out), &truth);
+    assert!(j >= 0.9, "IoU {j}");
 }
 
 #[test]

@@ -91,7 +91,8 @@ impl Pointing {
 }
 
 /// The object's mask at `photo`'s pixels from `pointing`, with the nets (input `n` x `n`)
-/// for a prior; an error if the pointing does not fit the photo or nothing is found.
+/// for a prior (left out when the cut with it keeps nothing); an error if the pointing does
+/// not fit the photo or nothing is found.
 pub fn segment_object(
     nets: &Nets,
     photo: &Image,
@@ -162,8 +163,18 @@ pub fn segment_object(
         background: &pointing.background,
         prior: Some(&prior),
     };
-    let mask = segment::cut(photo, &hints, &Settings::default());
-    if mask.iter().filter(|&&m| m).count() < MIN_OBJECT_PIXELS {
+    let found = |m: &[bool]| m.iter().filter(|&&m| m).count() >= MIN_OBJECT_PIXELS;
+    let mut mask = segment::cut(photo, &hints, &Settings::default());
+    if !found(&mask) {
+        // the nets saw nothing where the user points (a close-up unlike their training
+        // frames): the photo's colours and edges alone
+        let hints = Hints {
+            prior: None,
+            ..hints
+        };
+        mask = segment::cut(photo, &hints, &Settings::default());
+    }
+    if !found(&mask) {
         return Err(invalid!(
             "no object found where pointed at: draw the box closer around it, or give --point on it or --mask"
         ));
