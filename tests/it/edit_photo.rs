@@ -6,6 +6,8 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::common;
+
 use matedit::io::{self, Preview};
 use matedit::shapes::{self, Rotation, Shape, View};
 use matedit::{Batch, Camera, Convention, Device, Renderer, Scene};
@@ -392,16 +394,12 @@ fn the_photos_own_material_gives_it_back() {
 
 /// The built-in nets' weights with their metadata's `frame` set to "photo".
 fn photo_frame_weights(dir: &Path) -> PathBuf {
-    let bytes = matedit::nets::BUILTIN_WEIGHTS;
-    let (_, meta) = safetensors::SafeTensors::read_metadata(bytes).unwrap();
-    let mut meta = meta.metadata().clone().unwrap();
-    let mut config: serde_json::Value = serde_json::from_str(&meta["config"]).unwrap();
-    config["frame"] = "photo".into();
-    meta.insert("config".into(), config.to_string());
-    let st = safetensors::SafeTensors::deserialize(bytes).unwrap();
-    let path = dir.join("photo_frame.safetensors");
-    safetensors::serialize_to_file(st.tensors(), Some(meta), &path).unwrap();
-    path
+    let out = dir.join("photo_frame.safetensors");
+    common::rewritten_weights(matedit::nets::BUILTIN_WEIGHTS, &out, |_, meta| {
+        let mut config: serde_json::Value = serde_json::from_str(&meta["config"]).unwrap();
+        config["frame"] = "photo".into();
+        meta.insert("config".into(), config.to_string());
+    })
 }
 
 #[test]

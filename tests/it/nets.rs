@@ -192,37 +192,14 @@ fn case_image(all: &HashMap<String, (Vec<usize>, Vec<f64>)>, case: &str) -> Imag
     }
 }
 
-type Tensors = Vec<(String, safetensors::Dtype, Vec<usize>, Vec<u8>)>;
-
-/// The weights file rewritten with `edit` applied to its tensors (name, dtype, shape,
-/// bytes) and its metadata.
+/// The test weights rewritten with `edit` applied to their tensors and metadata.
 fn rewritten(
     dir: &Path,
     name: &str,
-    edit: impl FnOnce(&mut Tensors, &mut HashMap<String, String>),
+    edit: impl FnOnce(&mut common::Tensors, &mut HashMap<String, String>),
 ) -> PathBuf {
     let bytes = std::fs::read(data("weights.safetensors")).unwrap();
-    let (_, meta) = SafeTensors::read_metadata(&bytes).unwrap();
-    let st = SafeTensors::deserialize(&bytes).unwrap();
-    let mut tensors: Vec<_> = st
-        .tensors()
-        .into_iter()
-        .map(|(n, v)| (n, v.dtype(), v.shape().to_vec(), v.data().to_vec()))
-        .collect();
-    let mut meta = meta.metadata().clone().unwrap_or_default();
-    edit(&mut tensors, &mut meta);
-    let views: Vec<_> = tensors
-        .iter()
-        .map(|(n, d, s, b)| {
-            (
-                n.clone(),
-                safetensors::tensor::TensorView::new(*d, s.clone(), b).unwrap(),
-            )
-        })
-        .collect();
-    let path = dir.join(name);
-    safetensors::serialize_to_file(views, Some(meta), &path).unwrap();
-    path
+    common::rewritten_weights(&bytes, &dir.join(name), edit)
 }
 
 fn load_error(path: &Path) -> String {

@@ -4,6 +4,8 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::common;
+
 use matedit::Image;
 use matedit::io::{self, Preview};
 use matedit::splitmix::SplitMix;
@@ -106,29 +108,14 @@ fn a_box_cuts_the_object_out_of_clutter() {
 /// The test nets with the mask's bias at -100: they see no object anywhere.
 fn blind_weights(dir: &Path) -> PathBuf {
     let bytes = std::fs::read(test_weights()).unwrap();
-    let (_, meta) = safetensors::SafeTensors::read_metadata(&bytes).unwrap();
-    let st = safetensors::SafeTensors::deserialize(&bytes).unwrap();
-    let mut tensors: Vec<_> = st
-        .tensors()
-        .into_iter()
-        .map(|(n, v)| (n, v.dtype(), v.shape().to_vec(), v.data().to_vec()))
-        .collect();
-    let bias = tensors
-        .iter_mut()
-        .find(|(n, ..)| n == "normals.head.bias")
-        .unwrap();
-    assert_eq!((bias.1, &bias.2[..]), (safetensors::Dtype::F32, &[4][..]));
-    bias.3[12..16].copy_from_slice(&(-100f32).to_le_bytes());
-    let views: Vec<_> = tensors
-        .iter()
-        .map(|(n, d, s, b)| {
-            let view = safetensors::tensor::TensorView::new(*d, s.clone(), b).unwrap();
-            (n.clone(), view)
-        })
-        .collect();
-    let path = dir.join("blind.safetensors");
-    safetensors::serialize_to_file(views, meta.metadata().clone(), &path).unwrap();
-    path
+    common::rewritten_weights(&bytes, &dir.join("blind.safetensors"), |tensors, _| {
+        let bias = tensors
+            .iter_mut()
+            .find(|(n, ..)| n == "normals.head.bias")
+            .unwrap();
+        assert_eq!((bias.1, &bias.2[..]), (safetensors::Dtype::F32, &[4][..]));
+        bias.3[12..16].copy_from_slice(&(-100f32).to_le_bytes());
+    })
 }
 
 #[test]

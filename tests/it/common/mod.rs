@@ -319,3 +319,34 @@ pub fn synth_cmd(
     cmd.args(extra);
     cmd
 }
+
+/// A weights file's tensors as [`rewritten_weights`] hands them out: name, dtype, shape,
+/// bytes.
+pub type Tensors = Vec<(String, safetensors::Dtype, Vec<usize>, Vec<u8>)>;
+
+/// The safetensors file `bytes` written to `out` with `edit` applied to its tensors and
+/// its metadata; returns `out`.
+pub fn rewritten_weights(
+    bytes: &[u8],
+    out: &std::path::Path,
+    edit: impl FnOnce(&mut Tensors, &mut std::collections::HashMap<String, String>),
+) -> std::path::PathBuf {
+    let (_, meta) = safetensors::SafeTensors::read_metadata(bytes).unwrap();
+    let st = safetensors::SafeTensors::deserialize(bytes).unwrap();
+    let mut tensors: Tensors = st
+        .tensors()
+        .into_iter()
+        .map(|(n, v)| (n, v.dtype(), v.shape().to_vec(), v.data().to_vec()))
+        .collect();
+    let mut meta = meta.metadata().clone().unwrap_or_default();
+    edit(&mut tensors, &mut meta);
+    let views: Vec<_> = tensors
+        .iter()
+        .map(|(n, d, s, b)| {
+            let view = safetensors::tensor::TensorView::new(*d, s.clone(), b).unwrap();
+            (n.clone(), view)
+        })
+        .collect();
+    safetensors::serialize_to_file(views, Some(meta), out).unwrap();
+    out.to_path_buf()
+}
