@@ -87,6 +87,37 @@ impl Material {
         Material::new(format!("random-{seed}"), &ctrl).expect("within the valid ranges")
     }
 
+    /// The material `factors[k]` times as bright in channel k. Each lobe
+    /// exp(m0 x^m1) - 1, as a function of y = x^m1, is matched at its peak y = 1 (exactly:
+    /// m0' = ln(1 + r (e^m0 - 1))) and in its log slope there (m1' = p m1 with p the slope
+    /// of ln(1 + r (e^(m0 y) - 1)) at y = 1 over m0'): a small lobe (diffuse, broad) scales as
+    /// a whole (p = 1), a sharp one keeps its width where it is bright. Scales stay within
+    /// +-[`MAX_ABS_SCALE`], exponents within [`MAX_EXPONENT`]; a lobe whose peak a factor
+    /// would turn below -1 (a negative lobe made darker than black) is left as it was.
+    pub fn scaled(&self, factors: [f64; N_CHANNELS]) -> Material {
+        let mut m = self.clone();
+        for (k, &r) in factors.iter().enumerate() {
+            for s in 0..N_LOBES {
+                for j in 0..N_CTRL_POINTS {
+                    let (a, b) = (idx(k, s, 0, j), idx(k, s, 1, j));
+                    let m0 = m.ctrl[a];
+                    let v = 1.0 + r * m0.exp_m1();
+                    if v <= 0.0 || m0 == 0.0 {
+                        continue;
+                    }
+                    let m0_new = v.ln().clamp(-MAX_ABS_SCALE, MAX_ABS_SCALE);
+                    // d/dy ln(1 + r (e^(m0 y) - 1)) at y = 1, over m0'
+                    let p = r * m0 * m0.exp() / v / m0_new;
+                    m.ctrl[a] = m0_new;
+                    if p.is_finite() && p > 0.0 {
+                        m.ctrl[b] = (m.ctrl[b] * p).min(MAX_EXPONENT);
+                    }
+                }
+            }
+        }
+        m
+    }
+
     /// Checks that every control point is finite, scales are within +-[`MAX_ABS_SCALE`]
     /// and exponents within [0, [`MAX_EXPONENT`]].
     pub fn validate(&self) -> Result<()> {
@@ -172,4 +203,38 @@ pub fn material_from_ctrl(name: String, ctrl: &[f64]) -> std::result::Result<Mat
             .map(str::to_string)
             .unwrap_or(m)
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_scaled_lobe_keeps_its_peak_times_the_factor() {
+        let m = Material::random(7);
+        let r = [1.5, 0.5, 2.0];
+        let s = m.scaled(r);
+        s.validate().unwrap();
+        for k in 0..N_CHANNELS {
+            for l in 0..N_LOBES {
+                for j in 0..N_CTRL_POINTS {
+                    let (a, b) = (m.ctrl[idx(k, l, 0, j)], s.ctrl[idx(k, l, 0, j)]);
+                    let want = r[k] * a.exp_m1();
+                    assert!(
+                        (b.exp_m1() - want).abs() < 1e-9 * (1.0 + want.abs()),
+                        "{k} {l} {j}"
+                    );
+                }
+            }
+        }
+        // a small lobe scales as a whole: the same exponent, twice the scale
+        let small = Material::constant("small", [(1e-4, 3.0), (0.0, 0.0), (0.0, 0.0)]).unwrap();
+        let twice = small.scaled([2.0; 3]);
+        assert!((twice.ctrl[idx(0, 0, 1, 0)] - 3.0).abs() < 1e-3);
+        assert!((twice.ctrl[idx(0, 0, 0, 0)] - 2e-4).abs() < 1e-7);
+        // a sharp bright lobe keeps its width where it is bright: the exponent barely moves
+        let sharp = Material::constant("sharp", [(8.0, 200.0), (0.0, 0.0), (0.0, 0.0)]).unwrap();
+        let p = sharp.scaled([2.0; 3]).ctrl[idx(0, 0, 1, 0)] / 200.0;
+        assert!(p > 0.9 && p < 1.0, "{p}");
+    }
 }

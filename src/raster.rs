@@ -253,6 +253,38 @@ pub fn blur3(mask: &[bool], w: usize, h: usize) -> Vec<f32> {
     out
 }
 
+/// A `w` x `h` mask grown by `r` pixels: a pixel is set when any pixel of the
+/// (2r + 1)-square around it (inside the raster) is. Two passes of running counts, rows in
+/// parallel: linear in the pixels whatever `r`.
+pub fn dilate(mask: &[bool], w: usize, h: usize, r: usize) -> Vec<bool> {
+    // set pixels in each window [i - r, i + r] of a line, from its prefix counts
+    fn grow_line(line: &[bool], r: usize, out: &mut [bool]) {
+        let mut prefix = Vec::with_capacity(line.len() + 1);
+        prefix.push(0u32);
+        for &m in line {
+            prefix.push(prefix[prefix.len() - 1] + u32::from(m));
+        }
+        for (i, o) in out.iter_mut().enumerate() {
+            let (lo, hi) = (i.saturating_sub(r), (i + r + 1).min(line.len()));
+            *o = prefix[hi] > prefix[lo];
+        }
+    }
+    if w == 0 || h == 0 {
+        return mask.to_vec();
+    }
+    let mut rows = vec![false; w * h];
+    rows.par_chunks_mut(w)
+        .zip(mask.par_chunks(w))
+        .for_each(|(out, line)| grow_line(line, r, out));
+    // the columns, as rows of the transpose
+    let transposed: Vec<bool> = (0..w * h).map(|i| rows[(i % h) * w + i / h]).collect();
+    let mut cols = vec![false; w * h];
+    cols.par_chunks_mut(h)
+        .zip(transposed.par_chunks(h))
+        .for_each(|(out, line)| grow_line(line, r, out));
+    (0..w * h).map(|i| cols[(i % w) * h + i / w]).collect()
+}
+
 /// Separable Gaussian blur of sigma `s` pixels of a `w` x `h` raster, edges clamped.
 pub fn gaussian_blur(px: &mut [[f32; 3]], w: usize, h: usize, s: f64) {
     if s <= 0.0 {
@@ -291,6 +323,25 @@ pub fn gaussian_blur(px: &mut [[f32; 3]], w: usize, h: usize, s: f64) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn dilate_sets_the_square_around_each_set_pixel() {
+        let (w, h) = (7, 5);
+        let mut mask = vec![false; w * h];
+        mask[2 * w + 1] = true;
+        mask[4 * w + 6] = true;
+        for r in 0..4 {
+            let grown = dilate(&mask, w, h, r);
+            for y in 0..h {
+                for x in 0..w {
+                    let near =
+                        |(px, py): (usize, usize)| x.abs_diff(px) <= r && y.abs_diff(py) <= r;
+                    let want = near((1, 2)) || near((6, 4));
+                    assert_eq!(grown[y * w + x], want, "r {r} at ({x}, {y})");
+                }
+            }
+        }
+    }
 
     #[test]
     fn resize_averages_blocks_and_keeps_sizes() {

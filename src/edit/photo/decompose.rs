@@ -9,7 +9,7 @@ use super::composite::{RENDER_SIZE, render};
 use super::crop::{
     crop_around, crop_image, mask_image, paste_scalar, render_grid, upsample_normals,
 };
-use super::light::{Factors, match_background};
+use super::light::{Factors, REFINED_BIAS, match_background, relabel};
 use super::pointing::segment_object;
 use super::refine::refine_normals;
 use super::{Decomposition, Object, PhotoOptions, Stage};
@@ -111,7 +111,9 @@ pub fn decompose<'a>(
                 steps,
             })
         })?;
-        (f.material, f.env, f.losses)
+        let mut env = f.env;
+        let material = relabel(&f.material, &mut env, REFINED_BIAS);
+        (material, env, f.losses)
     };
     let mut normals = normals;
     let mut normal_losses = Vec::new();
