@@ -254,35 +254,58 @@ pub fn blur3(mask: &[bool], w: usize, h: usize) -> Vec<f32> {
 }
 
 /// A `w` x `h` mask grown by `r` pixels: a pixel is set when any pixel of the
-/// (2r + 1)-square around it (inside the raster) is. Two passes of running counts, rows in
-/// parallel: linear in the pixels whatever `r`.
+/// (2r + 1)-square around it (inside the raster) is. Rows, then columns, each a window
+/// sliding along with a running count, in parallel blocks: linear in the pixels whatever
+/// `r`.
 pub fn dilate(mask: &[bool], w: usize, h: usize, r: usize) -> Vec<bool> {
-    // set pixels in each window [i - r, i + r] of a line, from its prefix counts
-    fn grow_line(line: &[bool], r: usize, out: &mut [bool]) {
-        let mut prefix = Vec::with_capacity(line.len() + 1);
-        prefix.push(0u32);
-        for &m in line {
-            prefix.push(prefix[prefix.len() - 1] + u32::from(m));
-        }
-        for (i, o) in out.iter_mut().enumerate() {
-            let (lo, hi) = (i.saturating_sub(r), (i + r + 1).min(line.len()));
-            *o = prefix[hi] > prefix[lo];
-        }
-    }
     if w == 0 || h == 0 {
         return mask.to_vec();
     }
+    // along each row: the set pixels in [x - r, x + r] from the row's prefix counts
     let mut rows = vec![false; w * h];
     rows.par_chunks_mut(w)
         .zip(mask.par_chunks(w))
-        .for_each(|(out, line)| grow_line(line, r, out));
-    // the columns, as rows of the transpose
-    let transposed: Vec<bool> = (0..w * h).map(|i| rows[(i % h) * w + i / h]).collect();
-    let mut cols = vec![false; w * h];
-    cols.par_chunks_mut(h)
-        .zip(transposed.par_chunks(h))
-        .for_each(|(out, line)| grow_line(line, r, out));
-    (0..w * h).map(|i| cols[(i % w) * h + i / w]).collect()
+        .for_each(|(out, line)| {
+            let mut prefix = Vec::with_capacity(w + 1);
+            prefix.push(0u32);
+            for &m in line {
+                prefix.push(prefix[prefix.len() - 1] + u32::from(m));
+            }
+            for (x, o) in out.iter_mut().enumerate() {
+                *o = prefix[(x + r + 1).min(w)] > prefix[x.saturating_sub(r)];
+            }
+        });
+    // down the columns: per block of rows, each column's count over rows [y - r, y + r]
+    let block = h.div_ceil(rayon::current_num_threads().max(1)).max(1);
+    let mut out = vec![false; w * h];
+    out.par_chunks_mut(block * w)
+        .enumerate()
+        .for_each(|(b, out)| {
+            let y0 = b * block;
+            let mut count = vec![0u32; w];
+            let add = |count: &mut [u32], y: usize, d: i32| {
+                for (c, &m) in count.iter_mut().zip(&rows[y * w..(y + 1) * w]) {
+                    *c = c.wrapping_add_signed(d * i32::from(m));
+                }
+            };
+            for y in y0.saturating_sub(r)..(y0 + r).min(h) {
+                add(&mut count, y, 1);
+            }
+            for (i, row) in out.chunks_mut(w).enumerate() {
+                let y = y0 + i;
+                if y + r < h {
+                    add(&mut count, y + r, 1);
+                }
+                // the row that left the window (the block's first window starts full)
+                if y > y0 && y > r {
+                    add(&mut count, y - r - 1, -1);
+                }
+                for (o, &c) in row.iter_mut().zip(&count) {
+                    *o = c > 0;
+                }
+            }
+        });
+    out
 }
 
 /// Separable Gaussian blur of sigma `s` pixels of a `w` x `h` raster, edges clamped.
@@ -326,17 +349,17 @@ mod tests {
 
     #[test]
     fn dilate_sets_the_square_around_each_set_pixel() {
-        let (w, h) = (7, 5);
+        let (w, h) = (7, 13);
         let mut mask = vec![false; w * h];
         mask[2 * w + 1] = true;
-        mask[4 * w + 6] = true;
-        for r in 0..4 {
+        mask[12 * w + 6] = true;
+        for r in 0..15 {
             let grown = dilate(&mask, w, h, r);
             for y in 0..h {
                 for x in 0..w {
                     let near =
                         |(px, py): (usize, usize)| x.abs_diff(px) <= r && y.abs_diff(py) <= r;
-                    let want = near((1, 2)) || near((6, 4));
+                    let want = near((1, 2)) || near((6, 12));
                     assert_eq!(grown[y * w + x], want, "r {r} at ({x}, {y})");
                 }
             }
