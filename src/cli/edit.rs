@@ -4,6 +4,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+use matedit::edit::photo::light::LevelFrom;
 use matedit::edit::photo::{self, Decomposition, Object, PhotoOptions};
 use matedit::io::{self, Format, Preview};
 use matedit::nets::Nets;
@@ -189,6 +190,8 @@ pub fn run(args: &Args) -> Result<(), Failure> {
         "psnr_predicted_db": d.psnr_predicted,
         "psnr_refined_db": d.psnr_refined,
         "detail": d.detail,
+        "light_level_from": d.light_factors.from.as_str(),
+        "like_light_level_from": like.as_ref().map(|o| o.light_factors.from.as_str()),
         "light_factors": d.light_factors.below,
         "light_factors_above": d.light_factors.above,
         "seconds": stages,
@@ -206,6 +209,20 @@ pub fn run(args: &Args) -> Result<(), Failure> {
     staged.push(io::write::stage(&args.output.join("report.json"), &text)?);
     for s in staged {
         s.commit()?;
+    }
+    let grey_card = |what: &str| {
+        eprintln!(
+            "matedit: edit: {what}: the background is black, so the photo is taken as exposed \
+             for a grey card (exposed a stop brighter, the material would read twice as bright)"
+        )
+    };
+    if d.light_factors.from == LevelFrom::GreyCard {
+        grey_card(&args.photo.display().to_string());
+    }
+    if let (Some(o), Some(p)) = (&like, &args.like)
+        && o.light_factors.from == LevelFrom::GreyCard
+    {
+        grey_card(&format!("--like {}", p.display()));
     }
     eprintln!(
         "matedit: edit: I' PSNR {:.2} dB predicted, {:.2} dB refined ({} steps); {:.2} s in all; wrote {}",

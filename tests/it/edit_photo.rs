@@ -24,7 +24,19 @@ fn wide_photo(
     name: &str,
     shape: &str,
     preset: &str,
+    size: (usize, usize),
+) -> (PathBuf, PathBuf) {
+    photo_on(dir, name, shape, preset, size, 0.18)
+}
+
+/// [`wide_photo`] on a background of linear grey `background`.
+fn photo_on(
+    dir: &Path,
+    name: &str,
+    shape: &str,
+    preset: &str,
     (width, height): (usize, usize),
+    background: f32,
 ) -> (PathBuf, PathBuf) {
     let spec: Shape = shape.parse().unwrap();
     let view = View {
@@ -53,7 +65,7 @@ fn wide_photo(
         .remove(0);
     for (p, &m) in img.pixels.iter_mut().zip(&mask) {
         if !m {
-            *p = [0.18; 3];
+            *p = [background; 3];
         }
     }
     let (p, mpath) = (
@@ -81,6 +93,39 @@ fn edit(args: &[&std::ffi::OsStr]) -> assert_cmd::Command {
 
 fn report(dir: &Path) -> serde_json::Value {
     serde_json::from_slice(&std::fs::read(dir.join("report.json")).unwrap()).unwrap()
+}
+
+#[test]
+fn a_photo_on_black_is_taken_as_exposed_for_a_grey_card_and_says_so() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (grey, grey_mask) = photo(tmp.path(), "grey", "blobby:seed=3", "plastic-red", 64);
+    let (black, black_mask) = photo_on(tmp.path(), "black", "sphere", "gold", (64, 64), 0.0);
+    let out = tmp.path().join("out");
+    let run = edit(&[
+        grey.as_os_str(),
+        "--mask".as_ref(),
+        grey_mask.as_os_str(),
+        "--like".as_ref(),
+        black.as_os_str(),
+        "--like-mask".as_ref(),
+        black_mask.as_os_str(),
+        "-o".as_ref(),
+        out.as_os_str(),
+        "--steps".as_ref(),
+        "2".as_ref(),
+    ])
+    .assert()
+    .success();
+    let stderr = String::from_utf8_lossy(&run.get_output().stderr).into_owned();
+    let r = report(&out);
+    assert_eq!(r["light_level_from"], "background", "{r}");
+    assert_eq!(r["like_light_level_from"], "grey card", "{r}");
+    let notices: Vec<&str> = stderr.lines().filter(|l| l.contains("grey card")).collect();
+    assert_eq!(notices.len(), 1, "{stderr}");
+    assert!(
+        notices[0].contains("--like") && notices[0].contains("black.png"),
+        "{stderr}"
+    );
 }
 
 #[test]

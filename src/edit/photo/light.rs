@@ -66,11 +66,36 @@ pub const REFINED_BIAS: f64 = 1.24;
 /// The factor applied to a channel is kept within [1 / MAX_FACTOR, MAX_FACTOR].
 const MAX_FACTOR: f64 = 64.0;
 
+/// Where the light's level came from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LevelFrom {
+    /// The nets' own level (the background's light turned off).
+    Nets,
+    /// The photo's background: [`BACKGROUND_GAIN`] times its mean.
+    Background,
+    /// A background too dark to say (a swatch on black): the photo taken as exposed for a
+    /// grey card, [`EXPOSED_LEVEL`].
+    GreyCard,
+}
+
+impl LevelFrom {
+    /// The name reports use.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            LevelFrom::Nets => "nets",
+            LevelFrom::Background => "background",
+            LevelFrom::GreyCard => "grey card",
+        }
+    }
+}
+
 /// The factors per channel the light was scaled by, below the horizon and above it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Factors {
     pub below: [f64; 3],
     pub above: [f64; 3],
+    /// Where the level came from.
+    pub from: LevelFrom,
 }
 
 impl Factors {
@@ -78,6 +103,7 @@ impl Factors {
     pub const ONE: Factors = Factors {
         below: [1.0; 3],
         above: [1.0; 3],
+        from: LevelFrom::Nets,
     };
 }
 
@@ -116,6 +142,7 @@ pub fn match_background(env: &mut EnvMap, photo: &Image, mask: &[bool]) -> Facto
         let factors = Factors {
             below: [f; 3],
             above: [f; 3],
+            from: LevelFrom::GreyCard,
         };
         scale(env, &factors);
         return factors;
@@ -131,6 +158,7 @@ pub fn match_background(env: &mut EnvMap, photo: &Image, mask: &[bool]) -> Facto
     let factors = Factors {
         below: factors(1.0),
         above: factors(UPPER_COLOUR),
+        from: LevelFrom::Background,
     };
     scale(env, &factors);
     factors
@@ -234,6 +262,7 @@ mod tests {
             *p = if m { [0.5; 3] } else { [0.4, 0.2, 0.1] };
         }
         let f = match_background(&mut env, &photo, &mask);
+        assert_eq!(f.from, LevelFrom::Background);
         let mean = mean_radiance(&env);
         for k in 0..3 {
             assert!((mean[k] - BACKGROUND_GAIN * [0.4, 0.2, 0.1][k]).abs() < 1e-6);
@@ -299,7 +328,8 @@ mod tests {
             "the spill is too faint to test"
         );
         let mut env = EnvMap::constant(8, 16, Convention::Equirect, [2.0, 1.0, 0.5]).unwrap();
-        match_background(&mut env, &photo, &mask);
+        let f = match_background(&mut env, &photo, &mask);
+        assert_eq!(f.from, LevelFrom::GreyCard);
         assert!((luminance(mean_radiance(&env)) - EXPOSED_LEVEL).abs() < 1e-6);
     }
 
