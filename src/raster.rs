@@ -254,58 +254,15 @@ pub fn blur3(mask: &[bool], w: usize, h: usize) -> Vec<f32> {
 }
 
 /// A `w` x `h` mask grown by `r` pixels: a pixel is set when any pixel of the
-/// (2r + 1)-square around it (inside the raster) is. Rows, then columns, each a window
-/// sliding along with a running count, in parallel blocks: linear in the pixels whatever
-/// `r`.
+/// (2r + 1)-square around it (inside the raster) is: where the mask's box mean there
+/// ([`box_mean`](crate::segment::guided::box_mean), whose sums of ones and zeros are exact)
+/// is above zero.
 pub fn dilate(mask: &[bool], w: usize, h: usize, r: usize) -> Vec<bool> {
-    if w == 0 || h == 0 {
-        return mask.to_vec();
-    }
-    // along each row: the set pixels in [x - r, x + r] from the row's prefix counts
-    let mut rows = vec![false; w * h];
-    rows.par_chunks_mut(w)
-        .zip(mask.par_chunks(w))
-        .for_each(|(out, line)| {
-            let mut prefix = Vec::with_capacity(w + 1);
-            prefix.push(0u32);
-            for &m in line {
-                prefix.push(prefix[prefix.len() - 1] + u32::from(m));
-            }
-            for (x, o) in out.iter_mut().enumerate() {
-                *o = prefix[(x + r + 1).min(w)] > prefix[x.saturating_sub(r)];
-            }
-        });
-    // down the columns: per block of rows, each column's count over rows [y - r, y + r]
-    let block = h.div_ceil(rayon::current_num_threads().max(1)).max(1);
-    let mut out = vec![false; w * h];
-    out.par_chunks_mut(block * w)
-        .enumerate()
-        .for_each(|(b, out)| {
-            let y0 = b * block;
-            let mut count = vec![0u32; w];
-            let add = |count: &mut [u32], y: usize, d: i32| {
-                for (c, &m) in count.iter_mut().zip(&rows[y * w..(y + 1) * w]) {
-                    *c = c.wrapping_add_signed(d * i32::from(m));
-                }
-            };
-            for y in y0.saturating_sub(r)..(y0 + r).min(h) {
-                add(&mut count, y, 1);
-            }
-            for (i, row) in out.chunks_mut(w).enumerate() {
-                let y = y0 + i;
-                if y + r < h {
-                    add(&mut count, y + r, 1);
-                }
-                // the row that left the window (the block's first window starts full)
-                if y > y0 && y > r {
-                    add(&mut count, y - r - 1, -1);
-                }
-                for (o, &c) in row.iter_mut().zip(&count) {
-                    *o = c > 0;
-                }
-            }
-        });
-    out
+    let ones: Vec<f32> = mask.iter().map(|&m| f32::from(u8::from(m))).collect();
+    crate::segment::guided::box_mean(&ones, w, h, r)
+        .iter()
+        .map(|&v| v > 0.0)
+        .collect()
 }
 
 /// Separable Gaussian blur of sigma `s` pixels of a `w` x `h` raster, edges clamped.

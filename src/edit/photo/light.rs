@@ -169,11 +169,15 @@ pub fn match_background(env: &mut EnvMap, photo: &Image, mask: &[bool]) -> Facto
 /// (exactly at each lobe's peak and where lobes are small); what changes is how much of
 /// it is called light and how much material.
 pub fn relabel(material: &Material, env: &mut EnvMap, c: f64) -> Material {
-    for t in &mut env.texels {
-        for v in t.iter_mut() {
-            *v = (f64::from(*v) / c) as f32;
-        }
-    }
+    let by = [1.0 / c; 3];
+    scale(
+        env,
+        &Factors {
+            below: by,
+            above: by,
+            ..Factors::ONE
+        },
+    );
     material.scaled([c; 3])
 }
 
