@@ -253,16 +253,36 @@ pub fn blur3(mask: &[bool], w: usize, h: usize) -> Vec<f32> {
     out
 }
 
+/// The mean of `v` over the (2r + 1)^2 window around each pixel, clipped at the edges.
+pub fn box_mean(v: &[f32], w: usize, h: usize, r: usize) -> Vec<f32> {
+    // summed-area table, in f64 so that long rows of sums keep their last digits
+    let mut sat = vec![0.0f64; (w + 1) * (h + 1)];
+    for y in 0..h {
+        let mut row = 0.0;
+        for x in 0..w {
+            row += f64::from(v[y * w + x]);
+            sat[(y + 1) * (w + 1) + x + 1] = sat[y * (w + 1) + x + 1] + row;
+        }
+    }
+    let mut out = vec![0.0; w * h];
+    for y in 0..h {
+        let (ya, yb) = (y.saturating_sub(r), (y + r + 1).min(h));
+        for x in 0..w {
+            let (xa, xb) = (x.saturating_sub(r), (x + r + 1).min(w));
+            let s = sat[yb * (w + 1) + xb] - sat[ya * (w + 1) + xb] - sat[yb * (w + 1) + xa]
+                + sat[ya * (w + 1) + xa];
+            out[y * w + x] = (s / ((yb - ya) * (xb - xa)) as f64) as f32;
+        }
+    }
+    out
+}
+
 /// A `w` x `h` mask grown by `r` pixels: a pixel is set when any pixel of the
-/// (2r + 1)-square around it (inside the raster) is: where the mask's box mean there
-/// ([`box_mean`](crate::segment::guided::box_mean), whose sums of ones and zeros are exact)
-/// is above zero.
+/// (2r + 1)-square around it (inside the raster) is: where the mask's [`box_mean`] there
+/// (whose sums of ones and zeros are exact) is above zero.
 pub fn dilate(mask: &[bool], w: usize, h: usize, r: usize) -> Vec<bool> {
     let ones: Vec<f32> = mask.iter().map(|&m| f32::from(u8::from(m))).collect();
-    crate::segment::guided::box_mean(&ones, w, h, r)
-        .iter()
-        .map(|&v| v > 0.0)
-        .collect()
+    box_mean(&ones, w, h, r).iter().map(|&v| v > 0.0).collect()
 }
 
 /// Separable Gaussian blur of sigma `s` pixels of a `w` x `h` raster, edges clamped.
@@ -303,6 +323,16 @@ pub fn gaussian_blur(px: &mut [[f32; 3]], w: usize, h: usize, s: f64) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn box_means_are_window_means() {
+        let v: Vec<f32> = (0..20).map(|i| i as f32).collect();
+        let m = box_mean(&v, 5, 4, 1);
+        // (0, 0): pixels 0, 1, 5, 6
+        assert_eq!(m[0], 3.0);
+        // (2, 1): 1 2 3 6 7 8 11 12 13
+        assert_eq!(m[7], 7.0);
+    }
 
     #[test]
     fn dilate_sets_the_square_around_each_set_pixel() {

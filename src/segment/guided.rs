@@ -3,6 +3,8 @@
 //! a soft mask are fitted on a coarse grid, then brought to the fine grid bilinear and
 //! applied to the fine guide, so that the mask's edges follow the photo's own.
 
+use crate::raster::box_mean;
+
 /// Per coarse pixel, `a` and `b` with q = a * guide + b fitted to `p` over each
 /// (2r + 1)^2 window (least squares, `eps` the ridge that flattens low-contrast windows).
 pub fn coefficients(
@@ -30,43 +32,9 @@ pub fn coefficients(
     (box_mean(&a, w, h, r), box_mean(&b, w, h, r))
 }
 
-/// The mean of `v` over the (2r + 1)^2 window around each pixel, clipped at the edges.
-pub fn box_mean(v: &[f32], w: usize, h: usize, r: usize) -> Vec<f32> {
-    // summed-area table, in f64 so that long rows of sums keep their last digits
-    let mut sat = vec![0.0f64; (w + 1) * (h + 1)];
-    for y in 0..h {
-        let mut row = 0.0;
-        for x in 0..w {
-            row += f64::from(v[y * w + x]);
-            sat[(y + 1) * (w + 1) + x + 1] = sat[y * (w + 1) + x + 1] + row;
-        }
-    }
-    let mut out = vec![0.0; w * h];
-    for y in 0..h {
-        let (ya, yb) = (y.saturating_sub(r), (y + r + 1).min(h));
-        for x in 0..w {
-            let (xa, xb) = (x.saturating_sub(r), (x + r + 1).min(w));
-            let s = sat[yb * (w + 1) + xb] - sat[ya * (w + 1) + xb] - sat[yb * (w + 1) + xa]
-                + sat[ya * (w + 1) + xa];
-            out[y * w + x] = (s / ((yb - ya) * (xb - xa)) as f64) as f32;
-        }
-    }
-    out
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn box_means_are_window_means() {
-        let v: Vec<f32> = (0..20).map(|i| i as f32).collect();
-        let m = box_mean(&v, 5, 4, 1);
-        // (0, 0): pixels 0, 1, 5, 6
-        assert_eq!(m[0], 3.0);
-        // (2, 1): 1 2 3 6 7 8 11 12 13
-        assert_eq!(m[7], 7.0);
-    }
 
     #[test]
     fn a_blurred_step_is_sharpened_to_the_guide() {
