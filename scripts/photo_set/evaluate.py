@@ -12,7 +12,11 @@ swatch_mask.png, meta.json), over the true mask's pixels, on sRGB values in [0, 
 
 The --like photo's mask is given with --like-mask where the binary has it, else as the
 alpha of a PNG copy. A run that exits 2 with a one-line message is "refused" (counted, not
-scored). Writes OUT/results.json (per scene) and OUT/results.md (a table, median, worst).
+scored). Writes OUT/results.json (per scene) and OUT/results.md (a table, median, worst,
+mean). `--runs edit` runs only the edit (any of own, edit, nomask, box); `--like-true`
+reads the edit's material from edit_true.png instead of the swatch (the same shape, light
+and camera: what the rest of the pipeline gives when the material is read as well as it
+can be).
 
     python evaluate.py --matedit target/release/matedit --set /work/photo_set/test --out /tmp/eval
 """
@@ -96,7 +100,7 @@ def run_edit(binary, photo, like, out, extra, like_mask=None, mask=None, box=Non
 # -----------------------------------------------------------------------------
 # one scene
 
-def evaluate_scene(binary, scene_dir, out, extra, options):
+def evaluate_scene(binary, scene_dir, out, extra, options, runs=("own", "edit", "nomask", "box"), like_true=False):
     with open(os.path.join(scene_dir, "meta.json")) as f:
         meta = json.load(f)
     path = lambda name: os.path.join(scene_dir, name)
@@ -109,6 +113,8 @@ def evaluate_scene(binary, scene_dir, out, extra, options):
         own_like = with_alpha(path("photo.png"), path("mask.png"), os.path.join(out, "photo_masked.png"))
         swatch_like = with_alpha(path("swatch.png"), path("swatch_mask.png"), os.path.join(out, "swatch_masked.png"))
         own_mask = swatch_mask = None
+    if like_true:
+        swatch_like, swatch_mask = path("edit_true.png"), path("mask.png")
     r = {
         "scene": os.path.basename(os.path.normpath(scene_dir)),
         "seed": meta["seed"],
@@ -120,27 +126,29 @@ def evaluate_scene(binary, scene_dir, out, extra, options):
         "baseline_psnr": psnr(photo, truth, mask),
     }
 
-    status, report, message = run_edit(binary, path("photo.png"), own_like, os.path.join(out, "own"), extra,
-                                       like_mask=own_mask, mask=path("mask.png"))
-    r["own_status"] = status
-    if status == "ok":
-        r["own_psnr"] = psnr(load_rgb(os.path.join(out, "own", "edit.png")), photo, mask)
-        r["own_seconds"] = report["seconds"]
-    else:
-        r["own_message"] = message
+    if "own" in runs:
+        status, report, message = run_edit(binary, path("photo.png"), own_like, os.path.join(out, "own"), extra,
+                                           like_mask=own_mask, mask=path("mask.png"))
+        r["own_status"] = status
+        if status == "ok":
+            r["own_psnr"] = psnr(load_rgb(os.path.join(out, "own", "edit.png")), photo, mask)
+            r["own_seconds"] = report["seconds"]
+        else:
+            r["own_message"] = message
 
-    status, report, message = run_edit(binary, path("photo.png"), swatch_like, os.path.join(out, "edit"), extra,
-                                       like_mask=swatch_mask, mask=path("mask.png"))
-    r["edit_status"] = status
-    if status == "ok":
-        r["edit_psnr"] = psnr(load_rgb(os.path.join(out, "edit", "edit.png")), truth, mask)
-        r["gain"] = r["edit_psnr"] - r["baseline_psnr"]
-        r["edit_seconds"] = report["seconds"]
-    else:
-        r["edit_message"] = message
+    if "edit" in runs:
+        status, report, message = run_edit(binary, path("photo.png"), swatch_like, os.path.join(out, "edit"),
+                                           extra, like_mask=swatch_mask, mask=path("mask.png"))
+        r["edit_status"] = status
+        if status == "ok":
+            r["edit_psnr"] = psnr(load_rgb(os.path.join(out, "edit", "edit.png")), truth, mask)
+            r["gain"] = r["edit_psnr"] - r["baseline_psnr"]
+            r["edit_seconds"] = report["seconds"]
+        else:
+            r["edit_message"] = message
 
-    variants = [("nomask", None)]
-    if "--box" in options:
+    variants = [("nomask", None)] if "nomask" in runs else []
+    if "--box" in options and "box" in runs:
         variants.append(("box", meta["box"]))
     for name, box in variants:
         status, report, message = run_edit(binary, path("photo.png"), swatch_like, os.path.join(out, name), extra,
@@ -180,7 +188,8 @@ def summary(results, figures):
     for key, _, _ in figures:
         values = [r[key] for r in results if key in r]
         if values:
-            out[key] = {"median": statistics.median(values), "worst": min(values), "n": len(values)}
+            out[key] = {"median": statistics.median(values), "worst": min(values),
+                        "mean": statistics.fmean(values), "n": len(values)}
     for name in ("own", "edit", "nomask", "box"):
         statuses = [r[f"{name}_status"] for r in results if f"{name}_status" in r]
         if statuses:
@@ -200,7 +209,7 @@ def markdown(results, summ, figures, header):
         row = [r["scene"], r["object"], r["material"], r["edit_material"]]
         row += [cell(r, key, fmt) for key, _, fmt in figures] + [secs]
         lines.append("| " + " | ".join(row) + " |")
-    for stat in ("median", "worst"):
+    for stat in ("median", "worst", "mean"):
         row = [f"**{stat}**", "", "", ""]
         row += [fmt.format(summ[key][stat]) if key in summ else "-" for key, _, fmt in figures]
         row.append(f"{summ['edit_total_seconds_median']:.1f}" if stat == "median" and "edit_total_seconds_median" in summ else "")
@@ -219,20 +228,28 @@ def main():
     p.add_argument("--set", required=True, help="folder of scene folders (make_set.py --out)")
     p.add_argument("--out", required=True, help="folder for the edits and results.{json,md}")
     p.add_argument("--extra", default="", help='arguments appended to every edit, e.g. "--steps 50"')
+    p.add_argument("--runs", default="own,edit,nomask,box", help="which runs, of own, edit, nomask, box")
+    p.add_argument("--like-true", action="store_true", help="read the edit's material from edit_true.png")
     args = p.parse_args()
+    runs = args.runs.split(",")
+    if not set(runs) <= {"own", "edit", "nomask", "box"}:
+        p.error(f"--runs {args.runs}: each run is one of own, edit, nomask, box")
 
     binary = os.path.abspath(args.matedit)
     options = options_of(binary)
     extra = shlex.split(args.extra)
     scenes = sorted(d for d in os.listdir(args.set) if os.path.isfile(os.path.join(args.set, d, "meta.json")))
-    figures = [f for f in FIGURES if f[0] != "box_iou" or "--box" in options]
+    wanted = {"own_psnr": "own", "edit_psnr": "edit", "gain": "edit", "nomask_iou": "nomask", "box_iou": "box"}
+    figures = [f for f in FIGURES if wanted.get(f[0], "edit") in runs and (f[0] != "box_iou" or "--box" in options)]
     results = []
     for name in scenes:
-        r = evaluate_scene(binary, os.path.join(args.set, name), os.path.join(args.out, name), extra, options)
+        r = evaluate_scene(binary, os.path.join(args.set, name), os.path.join(args.out, name), extra, options,
+                           runs, args.like_true)
         results.append(r)
         print(" ".join([name] + [f"{t}={cell(r, k, f)}" for k, t, f in figures]))
     summ = summary(results, figures)
-    config = {"matedit": binary, "set": os.path.abspath(args.set), "extra": extra,
+    config = {"matedit": binary, "set": os.path.abspath(args.set), "extra": extra, "runs": runs,
+              "like_true": args.like_true,
               "like_mask": "--like-mask" in options, "box": "--box" in options}
     os.makedirs(args.out, exist_ok=True)
     with open(os.path.join(args.out, "results.json"), "w") as f:

@@ -34,7 +34,8 @@ import numpy as np
 from PIL import Image
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from make_set import SPLITS, SWATCHES, bsdf, render, save_png, swatch_dict, swatch_exposure_of, to_srgb8  # noqa: E402
+from make_set import (SPLITS, SWATCHES, bsdf, render, save_png, swatch_dict, swatch_exposure_of,  # noqa: E402
+                      to_srgb8, white_balance_of)
 
 FAMILY_DELTA_E = 20.0
 SIDE = 128  # the swatch photos' size
@@ -61,14 +62,15 @@ def disc(n):
 # -----------------------------------------------------------------------------
 # Mitsuba: the swatches and the true materials under a uniform light
 
-def swatch(mi, material, envmap, seed, work):
+def swatch(mi, material, envmap, seed, work, balance_error=None):
     photo_png, mask_png = os.path.join(work, "swatch.png"), os.path.join(work, "mask.png")
     if os.path.exists(photo_png) and os.path.exists(mask_png):
         return np.asarray(Image.open(photo_png)), np.asarray(Image.open(mask_png)) > 127
     scene = {"seed": seed, "swatch_envmap": envmap, "swatch_envmap_yaw": float(seed * 47 % 360)}
     photo = render(mi, swatch_dict(mi, scene, SIDE, 64, bsdf(material)))
     mask = render(mi, swatch_dict(mi, scene, SIDE, 16, None))[..., 0] > 0.5
-    photo = to_srgb8(photo * swatch_exposure_of(mi, scene))
+    gains = np.ones(3) if balance_error is None else white_balance_of(mi, scene, "swatch_envmap", balance_error)
+    photo = to_srgb8(photo * gains * swatch_exposure_of(mi, scene, gains))
     save_png(photo_png, photo)
     save_png(mask_png, (mask * 255).astype(np.uint8))
     return photo, mask
@@ -115,6 +117,8 @@ def main():
     ap.add_argument("--weights", help="the nets' weights (default: the built-in ones)")
     ap.add_argument("--split", choices=sorted(SPLITS), default="test", help="whose HDRIs (make_set.py's splits)")
     ap.add_argument("--maps", type=int, default=8, help="how many of the split's HDRIs")
+    ap.add_argument("--white-balance", type=float, metavar="ERROR",
+                    help="balance each swatch for its light, as make_set.py's --white-balance (use a new OUT)")
     args = ap.parse_args()
     import mitsuba as mi
     try:
@@ -135,7 +139,7 @@ def main():
         for k, envmap in enumerate(maps):
             work = os.path.join(args.out, name, envmap)
             os.makedirs(work, exist_ok=True)
-            photo, mask = swatch(mi, material, envmap, 100 * mi_index + k, work)
+            photo, mask = swatch(mi, material, envmap, 100 * mi_index + k, work, args.white_balance)
             got, got_image = read_albedo(args.matedit, os.path.join(work, "swatch.png"), os.path.join(work, "mask.png"),
                                          work, extra)
             delta = float(np.linalg.norm(lab(got) - lab(truth)))

@@ -453,11 +453,28 @@ def photo_exposure(image, mask):
     return min(0.18 / max(np.median(lum), 1e-6), 0.9 / max(np.percentile(lum[mask], 97), 1e-6))
 
 
-def swatch_exposure_of(mi, scene):
-    """The swatch is exposed as for a grey card: a white diffuse sphere there has mean 0.5."""
-    white = render(mi, swatch_dict(mi, scene, 32, 32, bsdf({"type": "diffuse", "reflectance": [1, 1, 1]})))
-    small_mask = render(mi, swatch_dict(mi, scene, 32, 16, None))[..., 0] > 0.5
-    return 0.5 / max(luminance(white)[small_mask].mean(), 1e-6)
+def white_sphere(mi, scene, env_key="swatch_envmap"):
+    """Mean linear RGB of a white diffuse sphere under the scene's `env_key` map."""
+    lit = dict(scene, swatch_envmap=scene[env_key], swatch_envmap_yaw=scene[env_key + "_yaw"])
+    white = render(mi, swatch_dict(mi, lit, 32, 32, bsdf({"type": "diffuse", "reflectance": [1, 1, 1]})))
+    small_mask = render(mi, swatch_dict(mi, lit, 32, 16, None))[..., 0] > 0.5
+    return white[small_mask].mean(0)
+
+
+def swatch_exposure_of(mi, scene, gains=(1, 1, 1)):
+    """The swatch is exposed as for a grey card: a white diffuse sphere there has mean 0.5
+    (after the white balance's `gains`)."""
+    return 0.5 / max(float(luminance(white_sphere(mi, scene) * np.asarray(gains))), 1e-6)
+
+
+def white_balance_of(mi, scene, env_key, error):
+    """A camera's white balance: per-channel gains that make a white sphere under the map
+    grey at the same luminance, each off by a factor exp(N(0, error)) as an automatic
+    white balance is (drawn from the scene's seed), the product at unit luminance."""
+    white = white_sphere(mi, scene, env_key)
+    rng = np.random.default_rng([scene["seed"], 1 if env_key == "envmap" else 2])
+    gains = luminance(white) / np.maximum(white, 1e-6) * np.exp(rng.normal(0, error, 3))
+    return gains / luminance(gains)
 
 
 def bounding_box(mask):
@@ -465,7 +482,7 @@ def bounding_box(mask):
     return [int(xs.min()), int(ys.min()), int(xs.max()) + 1, int(ys.max()) + 1]
 
 
-def make_scene(mi, scene, size, spp, out, write_exr):
+def make_scene(mi, scene, size, spp, out, write_exr, balance_error=None):
     os.makedirs(out, exist_ok=True)
     width, height = size
     with tempfile.TemporaryDirectory() as workdir:
@@ -480,11 +497,18 @@ def make_scene(mi, scene, size, spp, out, write_exr):
             raise RuntimeError(f"seed {scene['seed']}: the object is hidden ({mask.sum()} pixels)")
         photo = render(mi, with_object(scene["material"], spp))
         edit = render(mi, with_object(scene["edit_material"], spp))
-    exposure = photo_exposure(photo, mask)
     side = min(width, height)
     swatch = render(mi, swatch_dict(mi, scene, side, spp, bsdf(scene["edit_material"])))
     swatch_mask = render(mi, swatch_dict(mi, scene, side, 16, None))[..., 0] > 0.5
-    swatch_exposure = swatch_exposure_of(mi, scene)
+    swatch_gains = np.ones(3)
+    if balance_error is not None:
+        gains = white_balance_of(mi, scene, "envmap", balance_error)
+        swatch_gains = white_balance_of(mi, scene, "swatch_envmap", balance_error)
+        photo, edit, swatch = photo * gains, edit * gains, swatch * swatch_gains
+        scene["white_balance"] = [round(float(g), 4) for g in gains]
+        scene["swatch_white_balance"] = [round(float(g), 4) for g in swatch_gains]
+    exposure = photo_exposure(photo, mask)
+    swatch_exposure = swatch_exposure_of(mi, scene, swatch_gains)
 
     save_png(os.path.join(out, "photo.png"), to_srgb8(photo * exposure))
     save_png(os.path.join(out, "mask.png"), (mask * 255).astype(np.uint8))
@@ -509,6 +533,8 @@ def main():
     p.add_argument("--spp", type=int, default=96, help="samples per pixel")
     p.add_argument("--out", required=True, help="folder; scene i goes to OUT/NNN")
     p.add_argument("--no-exr", action="store_true", help="skip photo.exr")
+    p.add_argument("--white-balance", type=float, metavar="ERROR", default=None,
+                   help="balance each image for its light as a camera does, off by exp(N(0, ERROR)) a channel")
     args = p.parse_args()
 
     import mitsuba as mi
@@ -524,7 +550,8 @@ def main():
         t = time.time()
         scene = describe(2 * i + offset, envmaps)
         scene["split"] = args.split
-        make_scene(mi, scene, size, args.spp, os.path.join(args.out, f"{i:03d}"), not args.no_exr)
+        make_scene(mi, scene, size, args.spp, os.path.join(args.out, f"{i:03d}"), not args.no_exr,
+                   args.white_balance)
         print(f"{args.split} {i:03d}: seed {scene['seed']} {scene['object']} {scene['material']['type']} -> "
               f"{scene['edit_material']['name']} under {scene['envmap']}, {time.time() - t:.1f} s")
     print(f"{args.count} scenes in {time.time() - t0:.1f} s ({mi.variant()}, {args.spp} spp, {args.size})")

@@ -192,8 +192,7 @@ pub fn run(args: &Args) -> Result<(), Failure> {
         "detail": d.detail,
         "light_level_from": d.light_factors.from.as_str(),
         "like_light_level_from": like.as_ref().map(|o| o.light_factors.from.as_str()),
-        "light_factors": d.light_factors.below,
-        "light_factors_above": d.light_factors.above,
+        "light_factors": d.light_factors.gains,
         "seconds": stages,
     });
     io::create_dirs(&args.output)?;

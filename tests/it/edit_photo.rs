@@ -398,7 +398,7 @@ fn the_photos_own_material_gives_it_back() {
     )
     .unwrap();
     assert!(
-        d.light_factors.below.iter().all(|&f| f != 1.0),
+        d.light_factors.gains.iter().all(|&f| f != 1.0),
         "{:?}",
         d.light_factors
     );

@@ -5,15 +5,20 @@
 //! that light, and, where it shows the surroundings, is that light: so the predicted
 //! light's mean luminance is set to the background's (times [`BACKGROUND_GAIN`]) before the
 //! refinement, whose level prior then holds the light near that level while the material
-//! takes what the object's shading asks for. Its colour below the horizon is the
-//! background's, above it half-way between the background's and the nets' ([`UPPER_COLOUR`]).
+//! takes what the object's shading asks for.
+//!
+//! Its mean colour is set to grey, the nets' variation of colour across it kept: a camera
+//! balances its colours so that the light comes out grey, and what colour a background
+//! has is mostly that of what it shows (a wooden table, foliage), not of the light. Until
+//! 2026-12-06 the light took the background's colour, and white paint on a flower before
+//! foliage came out mint green (docs/edit.md, "The light's colour").
 //!
 //! A background much darker than the object (an object photographed on black, a swatch)
 //! says nothing of the light. The nets' split is then a guess that goes wrong both ways
 //! (shiny metals read under a light ten times too bright come out nearly black, black
 //! rubber under one too dim comes out grey), so the photo is taken to be exposed as a
 //! camera exposes for a grey card: the light's mean luminance is set to [`EXPOSED_LEVEL`],
-//! its colour kept. Photos of the same exposure then give materials on one scale.
+//! grey. Photos of the same exposure then give materials on one scale.
 //!
 //! The background leaves out the object's edge ([`EDGE`]). After the refinement, which
 //! leaves the light brighter than it is, [`relabel`] moves [`REFINED_BIAS`] of it into the
@@ -38,14 +43,6 @@ const MIN_BACKGROUND: f64 = 0.05;
 /// swatches of the photo-like set's tune split, exposed as for a grey card, had 0.30 to
 /// 0.62, median 0.41 (docs/edit.md).
 pub const EXPOSED_LEVEL: f64 = 0.41;
-/// How much of the background's colour the light takes above the horizon, as a power of
-/// the background's tint (1: all of it, 0: the nets' colour). Below the horizon the light
-/// is the floor or table the object stands on, which is most of a frame's background, so
-/// it takes the background's colour whole; above it are the sky, lamps and walls, whose
-/// colour the background shows less of (a green floor is not a green sky). On the tune
-/// split's edits 0.5 gave a mean gain within 0.05 dB of the best of 0, 0.5 and 1 with the
-/// least loss in the worst scene (docs/edit.md, "The light's colour above and below").
-pub const UPPER_COLOUR: f64 = 0.5;
 /// The background leaves out the pixels within this fraction of the photo's longer side
 /// of the object (at least [`MIN_EDGE`] pixels): an object's edge spreads over a pixel or
 /// two beyond any mask, and a mask drawn by hand or cut by the nets is a few pixels off.
@@ -89,11 +86,10 @@ impl LevelFrom {
     }
 }
 
-/// The factors per channel the light was scaled by, below the horizon and above it.
+/// The factors the light was scaled by, per channel, and where its level came from.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Factors {
-    pub below: [f64; 3],
-    pub above: [f64; 3],
+    pub gains: [f64; 3],
     /// Where the level came from.
     pub from: LevelFrom,
 }
@@ -101,18 +97,15 @@ pub struct Factors {
 impl Factors {
     /// The light as the nets predicted it.
     pub const ONE: Factors = Factors {
-        below: [1.0; 3],
-        above: [1.0; 3],
+        gains: [1.0; 3],
         from: LevelFrom::Nets,
     };
 }
 
-/// Scales `env` per channel so that its mean luminance (over the sphere, by solid angle)
-/// is [`BACKGROUND_GAIN`] times that of the photo's pixels off `mask` and its [`EDGE`] (exactly where the
-/// background has the light's colour, nearly otherwise), with the background's colour
-/// below the horizon and [`UPPER_COLOUR`] of it above; where the
-/// background is too dark to say anything (or there is none), by one factor so that its
-/// mean luminance is [`EXPOSED_LEVEL`]. Returns the factors applied.
+/// Scales `env` per channel so that its mean radiance (over the sphere, by solid angle) is
+/// grey at [`BACKGROUND_GAIN`] times the mean luminance of the photo's pixels off `mask`
+/// and its [`EDGE`]; where the background is too dark to say anything (or there is none),
+/// grey at [`EXPOSED_LEVEL`]. Returns the factors applied.
 pub fn match_background(env: &mut EnvMap, photo: &Image, mask: &[bool]) -> Factors {
     let (w, h) = (photo.width, photo.height);
     let edge = ((EDGE * w.max(h) as f64).round() as usize).max(MIN_EDGE);
@@ -135,32 +128,18 @@ pub fn match_background(env: &mut EnvMap, photo: &Image, mask: &[bool]) -> Facto
     if n_obj == 0 || mean.iter().any(|&m| m <= 0.0) {
         return Factors::ONE;
     }
-    let bg = bg.map(|v| v / n_bg.max(1) as f64);
-    let obj = obj.map(|v| v / n_obj as f64);
-    if n_bg == 0 || luminance(bg) < MIN_BACKGROUND * luminance(obj) {
-        let f = (EXPOSED_LEVEL / luminance(mean)).clamp(1.0 / MAX_FACTOR, MAX_FACTOR);
-        let factors = Factors {
-            below: [f; 3],
-            above: [f; 3],
-            from: LevelFrom::GreyCard,
-        };
-        scale(env, &factors);
-        return factors;
-    }
-    let level = BACKGROUND_GAIN * luminance(bg).max(1e-6) / luminance(mean);
-    // the background's colour against the light's, each at unit luminance
-    let tint: [f64; 3] = std::array::from_fn(|k| {
-        (bg[k].max(1e-6) / luminance(bg).max(1e-6)) / (mean[k] / luminance(mean))
-    });
-    let factors = |power: f64| -> [f64; 3] {
-        tint.map(|t| (level * t.powf(power)).clamp(1.0 / MAX_FACTOR, MAX_FACTOR))
+    let bg = luminance(bg.map(|v| v / n_bg.max(1) as f64));
+    let obj = luminance(obj.map(|v| v / n_obj as f64));
+    let (level, from) = if n_bg == 0 || bg < MIN_BACKGROUND * obj {
+        (EXPOSED_LEVEL, LevelFrom::GreyCard)
+    } else {
+        (BACKGROUND_GAIN * bg.max(1e-6), LevelFrom::Background)
     };
     let factors = Factors {
-        below: factors(1.0),
-        above: factors(UPPER_COLOUR),
-        from: LevelFrom::Background,
+        gains: mean.map(|m| (level / m).clamp(1.0 / MAX_FACTOR, MAX_FACTOR)),
+        from,
     };
-    scale(env, &factors);
+    scale(env, factors.gains);
     factors
 }
 
@@ -169,30 +148,15 @@ pub fn match_background(env: &mut EnvMap, photo: &Image, mask: &[bool]) -> Facto
 /// (exactly at each lobe's peak and where lobes are small); what changes is how much of
 /// it is called light and how much material.
 pub fn relabel(material: &Material, env: &mut EnvMap, c: f64) -> Material {
-    let by = [1.0 / c; 3];
-    scale(
-        env,
-        &Factors {
-            below: by,
-            above: by,
-            ..Factors::ONE
-        },
-    );
+    scale(env, [1.0 / c; 3]);
     material.scaled([c; 3])
 }
 
-/// Multiplies each texel of `env` by its half's factors.
-fn scale(env: &mut EnvMap, factors: &Factors) {
-    let (w, h) = (env.width.max(1), env.height);
-    for (i, t) in env.texels.iter_mut().enumerate() {
-        // rows from +y (up) down: the first half is above the horizon
-        let f = if 2 * (i / w) < h {
-            factors.above
-        } else {
-            factors.below
-        };
+/// Multiplies each texel of `env` by `gains`, channel by channel.
+fn scale(env: &mut EnvMap, gains: [f64; 3]) {
+    for t in env.texels.iter_mut() {
         for k in 0..3 {
-            t[k] = (f64::from(t[k]) * f[k]) as f32;
+            t[k] = (f64::from(t[k]) * gains[k]) as f32;
         }
     }
 }
@@ -258,53 +222,36 @@ mod tests {
     use crate::envmap::Convention;
 
     #[test]
-    fn the_light_takes_the_backgrounds_level() {
-        let mut env = EnvMap::constant(8, 16, Convention::Equirect, [2.0, 1.0, 0.5]).unwrap();
-        let mut photo = Image::zeros(4, 4);
-        let mask: Vec<bool> = (0..16).map(|i| i < 4).collect();
-        for (p, &m) in photo.pixels.iter_mut().zip(&mask) {
-            *p = if m { [0.5; 3] } else { [0.4, 0.2, 0.1] };
-        }
-        let f = match_background(&mut env, &photo, &mask);
-        assert_eq!(f.from, LevelFrom::Background);
-        let mean = mean_radiance(&env);
-        for k in 0..3 {
-            assert!((mean[k] - BACKGROUND_GAIN * [0.4, 0.2, 0.1][k]).abs() < 1e-6);
-        }
-        // the background has the light's colour: one factor everywhere
-        assert_eq!(f.below, f.above);
-        assert!((f.below[0] - 0.2 * BACKGROUND_GAIN).abs() < 1e-6);
-        assert!((f.below[2] - 0.2 * BACKGROUND_GAIN).abs() < 1e-6);
-    }
-
-    #[test]
-    fn below_the_horizon_the_light_takes_the_backgrounds_colour_above_part_of_it() {
+    fn the_light_takes_the_backgrounds_level_in_grey() {
+        // a green floor under an orange light whose texels differ in colour
         let (h, w) = (8, 16);
-        let mut env = EnvMap::constant(h, w, Convention::Equirect, [1.0; 3]).unwrap();
+        let mut env = EnvMap::constant(h, w, Convention::Equirect, [2.0, 1.0, 0.5]).unwrap();
+        env.texels[3] = [4.0, 1.0, 0.25];
+        let before = env.clone();
         let mut photo = Image::zeros(4, 4);
         let mask: Vec<bool> = (0..16).map(|i| i < 4).collect();
-        // a green floor: luminance 0.2
         let bg = [0.1, 0.25, 0.1];
         for (p, &m) in photo.pixels.iter_mut().zip(&mask) {
             *p = if m { [0.5; 3] } else { bg.map(|v| v as f32) };
         }
         let f = match_background(&mut env, &photo, &mask);
-        let lum = luminance(bg);
+        assert_eq!(f.from, LevelFrom::Background);
+        let mean = mean_radiance(&env);
         for k in 0..3 {
-            let tint = bg[k] / lum;
-            assert!((f.below[k] - BACKGROUND_GAIN * bg[k]).abs() < 1e-6, "{f:?}");
-            let above = BACKGROUND_GAIN * lum * tint.powf(UPPER_COLOUR);
-            assert!((f.above[k] - above).abs() < 1e-6, "{f:?}");
+            assert!(
+                (mean[k] - BACKGROUND_GAIN * luminance(bg)).abs() < 1e-6,
+                "{mean:?}"
+            );
         }
-        // the upper rows are less green than the lower ones
-        let green = |t: [f32; 3]| t[1] / t[0];
-        assert!(green(env.texels[0]) < green(env.texels[h * w - 1]));
-        for (i, t) in env.texels.iter().enumerate() {
-            let want = if 2 * (i / w) < h { f.above } else { f.below };
+        // one factor a channel: the texels keep their colours against one another
+        for (a, b) in env.texels.iter().zip(&before.texels) {
             for k in 0..3 {
-                assert!((f64::from(t[k]) - want[k]).abs() < 1e-6, "texel {i}: {t:?}");
+                assert!((f64::from(a[k]) - f.gains[k] * f64::from(b[k])).abs() < 1e-6);
             }
         }
+        let red_over_blue = |t: [f32; 3]| t[0] / t[2];
+        let relative = red_over_blue(env.texels[3]) / red_over_blue(env.texels[0]);
+        assert!((relative - 4.0).abs() < 1e-4, "{relative}");
     }
 
     #[test]
@@ -381,7 +328,7 @@ mod tests {
     }
 
     #[test]
-    fn on_black_the_light_takes_the_exposed_level_and_keeps_its_colour() {
+    fn on_black_the_light_takes_the_exposed_level_in_grey() {
         let colour = [2.0, 1.0, 0.5];
         let mut env = EnvMap::constant(8, 16, Convention::Equirect, colour).unwrap();
         let mut photo = Image::zeros(4, 4);
@@ -390,14 +337,13 @@ mod tests {
             *p = if m { [0.5; 3] } else { [0.001; 3] };
         }
         let f = match_background(&mut env, &photo, &mask);
-        assert_eq!(f.below, f.above);
-        let f = f.below;
-        assert!(f[0] == f[1] && f[1] == f[2] && f[0] < 1.0, "{f:?}");
+        assert_eq!(f.from, LevelFrom::GreyCard);
         let mean = mean_radiance(&env);
-        assert!((luminance(mean) - EXPOSED_LEVEL).abs() < 1e-6, "{mean:?}");
-        assert!((mean[0] / mean[2] - 4.0).abs() < 1e-6, "{mean:?}");
+        for k in 0..3 {
+            assert!((mean[k] - EXPOSED_LEVEL).abs() < 1e-6, "{mean:?}");
+        }
         // no background at all: the same
         let mut env = EnvMap::constant(8, 16, Convention::Equirect, colour).unwrap();
-        assert_eq!(match_background(&mut env, &photo, &[true; 16]).below, f);
+        assert_eq!(match_background(&mut env, &photo, &[true; 16]), f);
     }
 }

@@ -129,9 +129,8 @@ pub struct Decomposition {
     /// The normals' refinement's loss (data term and smoothness prior) at its start and
     /// after each step taken (empty without it).
     pub normal_losses: Vec<f64>,
-    /// The factors the predicted light was scaled by per channel, below the horizon and
-    /// above it, to take the background's level and colour (ones where it was not:
-    /// [`light`]).
+    /// The factors the predicted light was scaled by per channel to take the background's
+    /// level (or the grey card's) in grey (ones where it was not: [`light`]).
     pub light_factors: light::Factors,
     /// The object's normals at the size edits render at (at most [`RENDER_SIZE`] a side,
     /// over the crop).
