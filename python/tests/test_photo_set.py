@@ -64,14 +64,15 @@ def test_iou():
     assert evaluate.iou(np.zeros(4, bool), np.zeros(4, bool)) == 1.0
 
 
-def test_summary_takes_median_and_worst_and_counts_refusals():
+def test_summary_takes_median_worst_and_mean_and_counts_refusals():
     results = [
         {"own_psnr": 30.0, "own_status": "ok", "nomask_status": "refused"},
         {"own_psnr": 20.0, "own_status": "ok", "nomask_iou": 0.5, "nomask_status": "ok"},
-        {"own_status": "error", "nomask_iou": 0.9, "nomask_status": "ok"},
+        {"own_psnr": 46.0, "own_status": "ok", "nomask_iou": 0.9, "nomask_status": "ok"},
+        {"own_status": "error"},
     ]
     s = evaluate.summary(results, evaluate.FIGURES)
-    assert s["own_psnr"] == {"median": 25.0, "worst": 20.0, "n": 2}
+    assert s["own_psnr"] == {"median": 30.0, "worst": 20.0, "mean": 32.0, "n": 3}
     assert s["nomask_iou"]["worst"] == 0.5
     assert (s["own_errors"], s["nomask_refused"]) == (1, 1)
 
