@@ -9,7 +9,7 @@ use super::composite::{RENDER_SIZE, render};
 use super::crop::{
     crop_around, crop_image, mask_image, paste_scalar, render_grid, upsample_normals,
 };
-use super::light::{Factors, REFINED_BIAS, match_background, relabel};
+use super::light::{EDIT_LIGHT_BLUR, Factors, REFINED_BIAS, blur, match_background, relabel};
 use super::pointing::segment_object;
 use super::refine::refine_normals;
 use super::{Decomposition, Object, PhotoOptions, Stage};
@@ -125,6 +125,7 @@ pub fn decompose<'a>(
         work_normals = refined;
     }
     let psnr_refined = judge(&work_normals, &material, &env)?;
+    let env = blur(&env, EDIT_LIGHT_BLUR);
     let (render_normals, coverage) = render_grid(&normals, &crop_mask, crop.size.min(RENDER_SIZE));
     let mut d = Decomposition {
         width: w,

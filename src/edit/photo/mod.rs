@@ -117,10 +117,12 @@ pub struct Decomposition {
     pub predicted_env: EnvMap,
     /// The refined material (the prediction without refinement).
     pub material: Material,
-    /// The refined light (the prediction without refinement).
+    /// The light edits render under: the refined light (the prediction without
+    /// refinement) blurred by [`light::EDIT_LIGHT_BLUR`] ([`light::blur`]).
     pub env: EnvMap,
     /// PSNR (dB) of I' = R(n', m', L') against the photo over the object, with the
-    /// predictions and after refinement, at the refinement's working size.
+    /// predictions and after refinement (with the refined light before its blur), at the
+    /// refinement's working size.
     pub psnr_predicted: f64,
     /// As `psnr_predicted`, after refinement.
     pub psnr_refined: f64,
