@@ -165,9 +165,10 @@ def edit(photo, material=None, *, like=None, mask=None, like_mask=None, steps=20
     the nets' time, as `matedit edit --no-mirror`).
 
     Returns a dict: "edit" (H, W, 3) linear, "mask" and "alpha" (H, W), "normals" at the
-    crop (S, S, 3) and "crop" (x0, y0, S), "env" (the refined light), "material" and
-    "predicted_material" (108,) of the photo's object, "psnr_predicted" and "psnr_refined"
-    (dB, the re-rendered photo against the photo), "losses", "seconds".
+    crop (S, S, 3) and "crop" (x0, y0, S), "env" (the refined light, blurred as edits
+    render under it), "material" and "predicted_material" (108,) of the photo's object,
+    "psnr_predicted" and "psnr_refined" (dB, the re-rendered photo against the photo, with
+    the light before its blur), "losses", "seconds".
     """
     photo = _photo("photo", photo)
     if (material is None) == (like is None):

@@ -22,8 +22,8 @@ Examples:
   matedit edit photo.jpg --material gold -o out/ --point 250,200 --not 260,330
   matedit edit photo.exr --like other.jpg -o out/          (the other photo's material)
 
-Writes OUT_DIR/edit.(png|jpg|exr) (the input's kind), normals.png, mask.png, light.exr,
-material.json, sphere.png (the refined material on a sphere under the built-in sky),
+Writes OUT_DIR/edit.(png|jpg|exr) (the input's kind), normals.png, mask.png, light.exr
+(the refined light, blurred as the edit renders under it), material.json, sphere.png (the refined material on a sphere under the built-in sky),
 compare.png (photo | edit | normals | sphere) and report.json (stage times, PSNR of the
 re-rendered photo before and after refinement). A PNG's alpha is its mask unless --mask,
 --box or --point is given; without any, the nets find the object, and when no single

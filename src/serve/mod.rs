@@ -3,8 +3,8 @@
 //! decoded by the command line's loaders, checked against the server's limits, and
 //! decomposed by the nets and the refinement in the background while its progress streams
 //! as server-sent events; an edit renders the object with another material under the
-//! refined light (turned and exposed as asked), at full size or as a preview through the
-//! levels of detail.
+//! refined light, blurred as for `matedit edit` (turned and exposed as asked), at full
+//! size or as a preview through the levels of detail.
 //!
 //! Safe by default: loopback unless told otherwise; uploads limited in bytes (413) and in
 //! pixels (413, read from the headers before decoding); only JPEG, PNG and EXR accepted
