@@ -23,9 +23,10 @@ Examples:
   matedit edit photo.exr --like other.jpg -o out/          (the other photo's material)
 
 Writes OUT_DIR/edit.(png|jpg|exr) (the input's kind), normals.png, mask.png, light.exr
-(the refined light, blurred as the edit renders under it), material.json, sphere.png (the refined material on a sphere under the built-in sky),
-compare.png (photo | edit | normals | sphere) and report.json (stage times, PSNR of the
-re-rendered photo before and after refinement). A PNG's alpha is its mask unless --mask,
+(the refined light, blurred as the edit renders under it), material.json, sphere.png
+(the refined material on a sphere under the built-in sky), compare.png (photo | edit |
+normals | sphere) and report.json (stage times, PSNR of the re-rendered photo before and
+after refinement). A PNG's alpha is its mask unless --mask,
 --box or --point is given; without any, the nets find the object, and when no single
 object stands out (they take the table or the wall for it) the edit is refused: point at
 it. --box cuts the object out of the box (nothing outside it is kept), --point marks
