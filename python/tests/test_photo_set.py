@@ -26,6 +26,7 @@ def load_script(name):
 
 evaluate = load_script("evaluate")
 like_family = load_script("like_family")
+make_set = load_script("make_set")
 
 
 def test_lab_and_the_family_threshold():
@@ -75,6 +76,22 @@ def test_summary_takes_median_worst_and_mean_and_counts_refusals():
     assert s["own_psnr"] == {"median": 30.0, "worst": 20.0, "mean": 32.0, "n": 3}
     assert s["nomask_iou"]["worst"] == 0.5
     assert (s["own_errors"], s["nomask_refused"]) == (1, 1)
+
+
+def test_white_balance_greys_the_white_sphere_and_draws_its_error_from_the_seed():
+    white = np.array([0.9, 0.6, 0.3])  # a white sphere under a sunset
+    exact = make_set.white_balance(white, [7, 1], 0.0)
+    balanced = white * exact
+    assert np.allclose(balanced, balanced[0]), balanced
+    # a grey surface keeps its luminance
+    assert make_set.luminance(exact) == pytest.approx(1.0)
+    off = make_set.white_balance(white, [7, 1], 0.05)
+    assert np.array_equal(off, make_set.white_balance(white, [7, 1], 0.05))
+    assert not np.allclose(off, make_set.white_balance(white, [7, 2], 0.05))
+    assert 0 < np.abs(np.log(off / exact)).max() < 0.3
+    # a grey card: the white sphere at 0.5 after the balance
+    e = make_set.grey_card_exposure(white, exact)
+    assert make_set.luminance(white * exact * e) == pytest.approx(0.5)
 
 
 def test_committed_scenes_have_what_meta_promises():

@@ -34,8 +34,8 @@ import numpy as np
 from PIL import Image
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from make_set import (SPLITS, SWATCHES, bsdf, render, save_png, swatch_dict, swatch_exposure_of,  # noqa: E402
-                      to_srgb8, white_balance_of)
+from make_set import (SPLITS, SWATCHES, bsdf, grey_card_exposure, render, save_png, swatch_dict,  # noqa: E402
+                      to_srgb8, white_balance, white_sphere)
 
 FAMILY_DELTA_E = 20.0
 SIDE = 128  # the swatch photos' size
@@ -69,8 +69,9 @@ def swatch(mi, material, envmap, seed, work, balance_error=None):
     scene = {"seed": seed, "swatch_envmap": envmap, "swatch_envmap_yaw": float(seed * 47 % 360)}
     photo = render(mi, swatch_dict(mi, scene, SIDE, 64, bsdf(material)))
     mask = render(mi, swatch_dict(mi, scene, SIDE, 16, None))[..., 0] > 0.5
-    gains = np.ones(3) if balance_error is None else white_balance_of(mi, scene, "swatch_envmap", balance_error)
-    photo = to_srgb8(photo * gains * swatch_exposure_of(mi, scene, gains))
+    white = white_sphere(mi, scene)
+    gains = np.ones(3) if balance_error is None else white_balance(white, [seed, 2], balance_error)
+    photo = to_srgb8(photo * gains * grey_card_exposure(white, gains))
     save_png(photo_png, photo)
     save_png(mask_png, (mask * 255).astype(np.uint8))
     return photo, mask

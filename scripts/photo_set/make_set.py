@@ -461,19 +461,18 @@ def white_sphere(mi, scene, env_key="swatch_envmap"):
     return white[small_mask].mean(0)
 
 
-def swatch_exposure_of(mi, scene, gains=(1, 1, 1)):
-    """The swatch is exposed as for a grey card: a white diffuse sphere there has mean 0.5
-    (after the white balance's `gains`)."""
-    return 0.5 / max(float(luminance(white_sphere(mi, scene) * np.asarray(gains))), 1e-6)
+def grey_card_exposure(white, gains=(1, 1, 1)):
+    """The exposure of a swatch taken as for a grey card: a white diffuse sphere there,
+    of mean linear RGB `white`, has mean 0.5 after the white balance's `gains`."""
+    return 0.5 / max(float(luminance(np.asarray(white) * np.asarray(gains))), 1e-6)
 
 
-def white_balance_of(mi, scene, env_key, error):
-    """A camera's white balance: per-channel gains that make a white sphere under the map
-    grey at the same luminance, each off by a factor exp(N(0, error)) as an automatic
-    white balance is (drawn from the scene's seed), the product at unit luminance."""
-    white = white_sphere(mi, scene, env_key)
-    rng = np.random.default_rng([scene["seed"], 1 if env_key == "envmap" else 2])
-    gains = luminance(white) / np.maximum(white, 1e-6) * np.exp(rng.normal(0, error, 3))
+def white_balance(white, seed, error):
+    """A camera's white balance: per-channel gains that make a white sphere of mean linear
+    RGB `white` grey, each off by a factor exp(N(0, error)) as an automatic white balance
+    is (drawn from `seed`), scaled to unit luminance (a grey surface keeps its own)."""
+    white = np.asarray(white, dtype=np.float64)
+    gains = luminance(white) / np.maximum(white, 1e-6) * np.exp(np.random.default_rng(seed).normal(0, error, 3))
     return gains / luminance(gains)
 
 
@@ -500,15 +499,15 @@ def make_scene(mi, scene, size, spp, out, write_exr, balance_error=None):
     side = min(width, height)
     swatch = render(mi, swatch_dict(mi, scene, side, spp, bsdf(scene["edit_material"])))
     swatch_mask = render(mi, swatch_dict(mi, scene, side, 16, None))[..., 0] > 0.5
-    swatch_gains = np.ones(3)
+    swatch_white, swatch_gains = white_sphere(mi, scene), np.ones(3)
     if balance_error is not None:
-        gains = white_balance_of(mi, scene, "envmap", balance_error)
-        swatch_gains = white_balance_of(mi, scene, "swatch_envmap", balance_error)
+        gains = white_balance(white_sphere(mi, scene, "envmap"), [scene["seed"], 1], balance_error)
+        swatch_gains = white_balance(swatch_white, [scene["seed"], 2], balance_error)
         photo, edit, swatch = photo * gains, edit * gains, swatch * swatch_gains
         scene["white_balance"] = [round(float(g), 4) for g in gains]
         scene["swatch_white_balance"] = [round(float(g), 4) for g in swatch_gains]
     exposure = photo_exposure(photo, mask)
-    swatch_exposure = swatch_exposure_of(mi, scene, swatch_gains)
+    swatch_exposure = grey_card_exposure(swatch_white, swatch_gains)
 
     save_png(os.path.join(out, "photo.png"), to_srgb8(photo * exposure))
     save_png(os.path.join(out, "mask.png"), (mask * 255).astype(np.uint8))
