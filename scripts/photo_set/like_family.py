@@ -121,6 +121,8 @@ def main():
     ap.add_argument("--white-balance", type=float, metavar="ERROR",
                     help="balance each swatch for its light, as make_set.py's --white-balance (use a new OUT)")
     args = ap.parse_args()
+    if args.white_balance is not None and not args.white_balance >= 0:
+        ap.error(f"--white-balance {args.white_balance}: the error is a spread, 0 or more")
     import mitsuba as mi
     try:
         mi.set_variant("llvm_ad_rgb")

@@ -535,6 +535,8 @@ def main():
     p.add_argument("--white-balance", type=float, metavar="ERROR", default=None,
                    help="balance each image for its light as a camera does, off by exp(N(0, ERROR)) a channel")
     args = p.parse_args()
+    if args.white_balance is not None and not args.white_balance >= 0:
+        p.error(f"--white-balance {args.white_balance}: the error is a spread, 0 or more")
 
     import mitsuba as mi
     try:
