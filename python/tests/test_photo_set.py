@@ -94,6 +94,38 @@ def test_white_balance_greys_the_white_sphere_and_draws_its_error_from_the_seed(
     assert make_set.luminance(white * exact * e) == pytest.approx(0.5)
 
 
+def test_camera_frame_is_right_up_and_back_as_the_layer_takes_them():
+    assert np.allclose(make_set.camera_frame([0, 0, 4], [0, 0, 0]), np.eye(3))
+    # from +x looking at the origin: right is -z, up is y, back is +x
+    frame = make_set.camera_frame([5, 0, 0], [0, 0, 0])
+    assert np.allclose(frame, [[0, 0, -1], [0, 1, 0], [1, 0, 0]])
+    frame = make_set.camera_frame([1, 2, 3], [0, 0.3, 0])
+    assert np.allclose(frame @ frame.T, np.eye(3)) and np.linalg.det(frame) == pytest.approx(1)
+
+
+def test_layer_light_keeps_a_uniform_light_and_puts_a_lamp_where_the_camera_sees_it():
+    frame = make_set.camera_frame([1, 2, 3], [0, 0, 0])
+    out = make_set.layer_light(np.ones((64, 128, 3)), 37.0, frame, [2, 1, 0.5], size=(8, 16))
+    assert out.shape == (8, 16, 3)
+    # each texel takes the samples that land in it, about 32 x 32 here
+    assert np.allclose(out, [2, 1, 0.5], rtol=0.06)
+    # a lamp on the horizon at Mitsuba's u = 0.5 points down the map's own +z
+    lamp = np.zeros((64, 128, 3))
+    lamp[32, 64] = 1000
+    def brightest(yaw):
+        out = make_set.layer_light(lamp, yaw, np.eye(3), [1, 1, 1], size=(8, 16))
+        return np.unravel_index(out[..., 0].argmax(), out.shape[:2])
+    # unturned, towards the camera at +z: theta 90, phi 90 degrees (docs/CONVENTIONS.md)
+    assert brightest(0.0) == (4, 4)
+    # turned by -90 degrees about y it comes from -x: phi 180
+    assert brightest(-90.0) == (4, 8)
+    # the lamp's power is kept
+    out = make_set.layer_light(lamp, 0.0, np.eye(3), [1, 1, 1], size=(8, 16))
+    omega = np.sin((np.arange(8) + 0.5) / 8 * np.pi) * (np.pi / 8) * (2 * np.pi / 16)
+    src_omega = np.sin(32.5 / 64 * np.pi) * (np.pi / 64) * (2 * np.pi / 128)
+    assert (out[..., 0] * omega[:, None]).sum() == pytest.approx(1000 * src_omega, rel=1e-4)
+
+
 def test_committed_scenes_have_what_meta_promises():
     assert len(SCENES) == 6
     for scene in SCENES:

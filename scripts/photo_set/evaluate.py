@@ -16,7 +16,10 @@ scored). Writes OUT/results.json (per scene) and OUT/results.md (a table, median
 mean). `--runs edit` runs only the edit (any of own, edit, nomask, box); `--like-true`
 reads the edit's material from edit_true.png instead of the swatch (the same shape, light
 and camera: what the rest of the pipeline gives when the material is read as well as it
-can be).
+can be). `--known normals,light,material` gives the edit run what make_set.py knows of the
+scene: its true normals (`--normals normals.npy`), its true light (`--env light.exr`), the
+material fitted to the swatch under the swatch's true light and normals (`matedit fit`,
+then `--material` in place of `--like`): what each of the nets' guesses costs the edit.
 
     python evaluate.py --matedit target/release/matedit --set /work/photo_set/test --out /tmp/eval
 """
@@ -72,10 +75,11 @@ def with_alpha(rgb_path, mask_path, out_path):
     return out_path
 
 
-def run_edit(binary, photo, like, out, extra, like_mask=None, mask=None, box=None):
-    """Runs one edit; returns (status, report or None, message). Status is "ok", "refused"
-    (exit 2, a one-line message) or "error"."""
-    cmd = [binary, "edit", photo, "--like", like, "-o", out]
+def run_edit(binary, photo, like, out, extra, like_mask=None, mask=None, box=None, material=None):
+    """Runs one edit to the material of photo `like`, or to the material file `material`;
+    returns (status, report or None, message). Status is "ok", "refused" (exit 2, a
+    one-line message) or "error"."""
+    cmd = [binary, "edit", photo, "-o", out] + (["--material", material] if material else ["--like", like])
     if like_mask:
         cmd += ["--like-mask", like_mask]
     if mask:
@@ -86,8 +90,7 @@ def run_edit(binary, photo, like, out, extra, like_mask=None, mask=None, box=Non
     t = time.time()
     p = subprocess.run(cmd, capture_output=True, text=True)
     wall = time.time() - t
-    lines = [l for l in p.stderr.strip().splitlines() if l.strip()]
-    message = lines[-1] if lines else ""
+    message = last_line(p.stderr)
     if p.returncode == 0:
         with open(os.path.join(out, "report.json")) as f:
             report = json.load(f)
@@ -97,10 +100,44 @@ def run_edit(binary, photo, like, out, extra, like_mask=None, mask=None, box=Non
     return status, None, f"exit {p.returncode}: {message}"
 
 
+def last_line(text):
+    lines = [l for l in text.strip().splitlines() if l.strip()]
+    return lines[-1] if lines else ""
+
+
+def known_material(binary, scene_dir, out, device):
+    """The swatch's material as the layer fits it under the swatch's true light (at the
+    nets' 16 x 32) and normals (make_set.py's swatch_light.exr, swatch_normals.npy): the
+    path of out/material.json (kept from an earlier run when there), or None with a
+    message. `device`: the edits' --device, if any."""
+    path = lambda name: os.path.join(scene_dir, name)
+    cmd = [binary, "fit", "--image", path("swatch.png"), "--normals", path("swatch_normals.npy"),
+           "--mask", path("swatch_mask.png"), "--env", path("swatch_light.exr"), "--env-size", "16x32",
+           "-o", out] + device
+    material = os.path.join(out, "material.json")
+    if os.path.isfile(material):  # fitted before: kept, as the fit is the slow part
+        return material, ""
+    p = subprocess.run(cmd, capture_output=True, text=True)
+    if p.returncode:
+        return None, f"fit: exit {p.returncode}: {last_line(p.stderr)}"
+    return material, ""
+
+
+def known_args(scene_dir, known):
+    """The edit's arguments that give it the scene's true normals and light."""
+    args = []
+    if "normals" in known:
+        args += ["--normals", os.path.join(scene_dir, "normals.npy")]
+    if "light" in known:
+        args += ["--env", os.path.join(scene_dir, "light.exr")]
+    return args
+
+
 # -----------------------------------------------------------------------------
 # one scene
 
-def evaluate_scene(binary, scene_dir, out, extra, options, runs=("own", "edit", "nomask", "box"), like_true=False):
+def evaluate_scene(binary, scene_dir, out, extra, options, runs=("own", "edit", "nomask", "box"), like_true=False,
+                   known=(), fits=None):
     with open(os.path.join(scene_dir, "meta.json")) as f:
         meta = json.load(f)
     path = lambda name: os.path.join(scene_dir, name)
@@ -137,8 +174,16 @@ def evaluate_scene(binary, scene_dir, out, extra, options, runs=("own", "edit", 
             r["own_message"] = message
 
     if "edit" in runs:
-        status, report, message = run_edit(binary, path("photo.png"), swatch_like, os.path.join(out, "edit"),
-                                           extra, like_mask=swatch_mask, mask=path("mask.png"))
+        material, message = None, ""
+        if "material" in known:
+            device = extra[extra.index("--device"):][:2] if "--device" in extra else []
+            material, message = known_material(binary, scene_dir, os.path.join(fits or out, "known_material"), device)
+        if "material" in known and material is None:
+            status = "error"
+        else:
+            status, report, message = run_edit(binary, path("photo.png"), swatch_like, os.path.join(out, "edit"),
+                                               extra + known_args(scene_dir, known), like_mask=swatch_mask,
+                                               mask=path("mask.png"), material=material)
         r["edit_status"] = status
         if status == "ok":
             r["edit_psnr"] = psnr(load_rgb(os.path.join(out, "edit", "edit.png")), truth, mask)
@@ -230,10 +275,19 @@ def main():
     p.add_argument("--extra", default="", help='arguments appended to every edit, e.g. "--steps 50"')
     p.add_argument("--runs", default="own,edit,nomask,box", help="which runs, of own, edit, nomask, box")
     p.add_argument("--like-true", action="store_true", help="read the edit's material from edit_true.png")
+    p.add_argument("--fits", help="with --known material: keep the swatches' fits in FITS/NNN (reused when there) "
+                   "instead of OUT/NNN")
+    p.add_argument("--known", default="", help="what the edit run is given of the truth: any of normals, light, "
+                   "material (make_set.py's normals.npy, light.exr, and the swatch fitted under its true light)")
     args = p.parse_args()
     runs = args.runs.split(",")
     if not set(runs) <= {"own", "edit", "nomask", "box"}:
         p.error(f"--runs {args.runs}: each run is one of own, edit, nomask, box")
+    known = [k for k in args.known.split(",") if k]
+    if not set(known) <= {"normals", "light", "material"}:
+        p.error(f"--known {args.known}: each is one of normals, light, material")
+    if "material" in known and args.like_true:
+        p.error("--known material and --like-true each say where the material comes from: give one")
 
     binary = os.path.abspath(args.matedit)
     options = options_of(binary)
@@ -244,12 +298,12 @@ def main():
     results = []
     for name in scenes:
         r = evaluate_scene(binary, os.path.join(args.set, name), os.path.join(args.out, name), extra, options,
-                           runs, args.like_true)
+                           runs, args.like_true, known, args.fits and os.path.join(args.fits, name))
         results.append(r)
         print(" ".join([name] + [f"{t}={cell(r, k, f)}" for k, t, f in figures]))
     summ = summary(results, figures)
     config = {"matedit": binary, "set": os.path.abspath(args.set), "extra": extra, "runs": runs,
-              "like_true": args.like_true,
+              "like_true": args.like_true, "known": known,
               "like_mask": "--like-mask" in options, "box": "--box" in options}
     os.makedirs(args.out, exist_ok=True)
     with open(os.path.join(args.out, "results.json"), "w") as f:
@@ -257,7 +311,8 @@ def main():
         # strict JSON: an infinite PSNR (identical images) becomes null
         json.dump(json.loads(json.dumps(data), parse_constant=lambda c: None), f, indent=1)
         f.write("\n")
-    header = f"# matedit edit on {args.set} ({len(results)} scenes{', extra: ' + args.extra if args.extra else ''})"
+    header = (f"# matedit edit on {args.set} ({len(results)} scenes{', extra: ' + args.extra if args.extra else ''}"
+              f"{', known: ' + args.known if known else ''})")
     with open(os.path.join(args.out, "results.md"), "w") as f:
         f.write(markdown(results, summ, figures, header))
     print(markdown(results, summ, figures, header))

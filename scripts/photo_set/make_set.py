@@ -9,6 +9,12 @@ traced by Mitsuba 3 (shadows, interreflections). Per scene it writes:
     edit_true.png            the same scene and exposure with the object made of material M2
     swatch.png  swatch_mask.png   a sphere of M2 under another environment map, dark background
     meta.json                seed, object, materials, envmaps, camera, the object's box
+    normals.npy              the object's true normals, H x W x 3 float32, matedit's camera frame
+                             (x right, y up, z towards the viewer), zero off the object
+    swatch_normals.npy       the swatch sphere's, the same way
+    light.exr  swatch_light.exr   the true light of the photo and of the swatch as the layer
+                             sees it: 32 x 64 lat-long in the camera's frame (docs/CONVENTIONS.md),
+                             in the image's linear units (exposure and white balance applied)
 
 Everything random comes from the scene's seed; the splits use disjoint seeds (test: even,
 tune: odd) and disjoint environment maps (TEST_ENVMAPS, TUNE_ENVMAPS).
@@ -373,6 +379,61 @@ def sensor(mi, origin, target, fov, width, height, spp, seed, rfilter="gaussian"
     }
 
 
+def camera_frame(origin, target):
+    """Rows: the camera's right, up and backward directions in world space, so that
+    frame @ v is v in matedit's camera frame (x right, y up, z towards the viewer); the
+    frame of Mitsuba's look_at with up y, whose own x points to the image's left."""
+    forward = np.asarray(target, float) - np.asarray(origin, float)
+    forward /= np.linalg.norm(forward)
+    left = np.cross([0.0, 1.0, 0.0], forward)
+    left /= np.linalg.norm(left)
+    return np.stack([-left, np.cross(forward, left), -forward])
+
+
+def load_map(mi, name):
+    return np.array(mi.Bitmap(os.path.join(ENVMAP_DIR, f"{name}.exr")), dtype=np.float64)[..., :3]
+
+
+def layer_light(src, yaw, frame, scale, size=(32, 64), supersample=4):
+    """The lat-long map `src` (H x W x 3, as Mitsuba's envmap reads it) turned by `yaw`
+    degrees about y (as `envmap` puts it in the scene) as the layer sees it from a camera
+    of `frame`: a `size` lat-long map in matedit's equirect convention, each texel the
+    solid-angle mean of the map's radiance over it, times `scale` (per channel). Each
+    pixel of the map, split `supersample` ways a side, is carried to its texel with its
+    solid angle."""
+    sh, sw = src.shape[:2]
+    k = supersample
+    v = (np.arange(sh * k) + 0.5) / (sh * k)
+    u = (np.arange(sw * k) + 0.5) / (sw * k)
+    theta, phi = np.meshgrid(v * np.pi, u * 2 * np.pi, indexing="ij")
+    # Mitsuba's envmap: uv = (atan2(x, -z) / 2 pi, acos(y) / pi) in its own frame
+    local = np.stack([np.sin(theta) * np.sin(phi), np.cos(theta), -np.sin(theta) * np.cos(phi)], -1)
+    a = math.radians(yaw)
+    turn = np.array([[math.cos(a), 0, math.sin(a)], [0, 1, 0], [-math.sin(a), 0, math.cos(a)]])
+    d = local @ (frame @ turn).T
+    h, w = size
+    rows = np.clip((np.arccos(np.clip(d[..., 1], -1, 1)) / np.pi * h).astype(int), 0, h - 1)
+    cols = np.clip((np.mod(np.arctan2(d[..., 2], d[..., 0]), 2 * np.pi) / (2 * np.pi) * w).astype(int), 0, w - 1)
+    radiance = np.repeat(np.repeat(src, k, 0), k, 1)
+    weight = np.sin(theta) * (np.pi / (sh * k)) * (2 * np.pi / (sw * k))
+    texel = rows * w + cols
+    out = np.stack([np.bincount(texel.ravel(), (radiance[..., c] * weight).ravel(), h * w) for c in range(3)], -1)
+    texel_omega = np.sin((np.arange(h) + 0.5) / h * np.pi) * (np.pi / h) * (2 * np.pi / w)
+    out = out.reshape(h, w, 3) / texel_omega[:, None, None]
+    return (out * np.asarray(scale, float)).astype(np.float32)
+
+
+def true_normals(mi, d, frame, mask):
+    """The object's shading normals in scene `d` (its first hit), in matedit's camera
+    frame, zero off `mask`."""
+    d = dict(d, integrator={"type": "aov", "aovs": "nn:sh_normal"})
+    d["sensor"] = dict(d["sensor"], film=dict(d["sensor"]["film"], rfilter={"type": "box"}),
+                       sampler=dict(d["sensor"]["sampler"], sample_count=16))
+    n = render(mi, d)[..., :3] @ frame.T
+    n /= np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-6)
+    return np.where(mask[..., None], n, 0).astype(np.float32)
+
+
 def envmap(mi, name, yaw):
     return {"type": "envmap", "filename": os.path.join(ENVMAP_DIR, f"{name}.exr"),
             "to_world": mi.ScalarTransform4f().rotate([0, 1, 0], yaw)}
@@ -496,9 +557,14 @@ def make_scene(mi, scene, size, spp, out, write_exr, balance_error=None):
             raise RuntimeError(f"seed {scene['seed']}: the object is hidden ({mask.sum()} pixels)")
         photo = render(mi, with_object(scene["material"], spp))
         edit = render(mi, with_object(scene["edit_material"], spp))
+        origin, target, _ = camera(scene, width / height)
+        frame = camera_frame(origin, target)
+        normals = true_normals(mi, with_object(scene["material"], spp), frame, mask)
     side = min(width, height)
     swatch = render(mi, swatch_dict(mi, scene, side, spp, bsdf(scene["edit_material"])))
     swatch_mask = render(mi, swatch_dict(mi, scene, side, 16, None))[..., 0] > 0.5
+    swatch_normals = true_normals(mi, swatch_dict(mi, scene, side, spp, bsdf(scene["edit_material"])),
+                                  np.eye(3), swatch_mask)
     swatch_white, swatch_gains = white_sphere(mi, scene), np.ones(3)
     if balance_error is not None:
         gains = white_balance(white_sphere(mi, scene, "envmap"), [scene["seed"], 1], balance_error)
@@ -514,6 +580,15 @@ def make_scene(mi, scene, size, spp, out, write_exr, balance_error=None):
     save_png(os.path.join(out, "edit_true.png"), to_srgb8(edit * exposure))
     save_png(os.path.join(out, "swatch.png"), to_srgb8(swatch * swatch_exposure))
     save_png(os.path.join(out, "swatch_mask.png"), (swatch_mask * 255).astype(np.uint8))
+    gains = np.asarray(scene.get("white_balance", np.ones(3)))
+    np.save(os.path.join(out, "normals.npy"), normals)
+    np.save(os.path.join(out, "swatch_normals.npy"), swatch_normals)
+    light = layer_light(load_map(mi, scene["envmap"]), scene["envmap_yaw"], frame, gains * exposure)
+    mi.Bitmap(light).write(os.path.join(out, "light.exr"))
+    # the swatch's camera looks down -z from +z with up y: its frame is the world's
+    light = layer_light(load_map(mi, scene["swatch_envmap"]), scene["swatch_envmap_yaw"], np.eye(3),
+                        swatch_gains * swatch_exposure)
+    mi.Bitmap(light).write(os.path.join(out, "swatch_light.exr"))
     if write_exr:
         mi.Bitmap((photo * exposure).astype(np.float32)).write(os.path.join(out, "photo.exr"))
     meta = dict(scene, size=[width, height], spp=spp, exposure=round(float(exposure), 5),

@@ -80,6 +80,16 @@ pub struct Args {
     /// The nets' predictions as they are, without refinement.
     #[arg(long, conflicts_with_all = ["steps", "normal_steps"])]
     no_refine: bool,
+    /// The object's normals, known, in place of the nets': a normal map as for `render`
+    /// (camera frame: x right, y up, z towards the viewer), the photo's size; a pixel on the
+    /// object without one takes the nets'.
+    #[arg(long, value_name = "FILE")]
+    normals: Option<PathBuf>,
+    /// The light, known, in place of the nets': a lat-long map (EXR or NPY, the camera's
+    /// frame, the photo's linear units) that the nets' light size divides; only the material
+    /// is refined.
+    #[arg(long, value_name = "FILE")]
+    env: Option<PathBuf>,
     /// Weights of the nets (default: the ones built in; docs/nets_card.md).
     #[arg(long, value_name = "FILE")]
     weights: Option<PathBuf>,
@@ -128,11 +138,29 @@ pub fn run(args: &Args) -> Result<(), Failure> {
     }
     .with_mirror(!args.no_mirror);
     let renderer = Renderer::new(args.device)?;
+    let known_normals = match &args.normals {
+        Some(path) => Some(load_known_normals(path, &photo)?),
+        None => None,
+    };
+    let known_env = match &args.env {
+        Some(path) => {
+            let cfg = nets.config();
+            let size = io::EnvSize::Size {
+                height: cfg.env_height,
+                width: cfg.env_width,
+            };
+            let loaded = io::load_env(path, Convention::Equirect)?;
+            Some(io::resample::fit(loaded.env, size, path)?)
+        }
+        None => None,
+    };
     let options = PhotoOptions {
         steps: if args.no_refine { 0 } else { args.steps },
         normal_steps: if args.no_refine { 0 } else { args.normal_steps },
         detail: args.detail,
         background_light: !args.no_background_light,
+        normals: known_normals,
+        env: known_env,
         ..PhotoOptions::default()
     };
     let load_s = t0.elapsed().as_secs_f64();
@@ -145,8 +173,21 @@ pub fn run(args: &Args) -> Result<(), Failure> {
     let (material, like) = match (target, other) {
         (Some(m), _) => (m, None),
         (None, Some((img, m))) => {
-            let o = photo::decompose(&renderer, &nets, &img, m.as_deref(), &options, &mut |_| {})
-                .map_err(|e| {
+            // what is known of the photo is not known of the other
+            let like_options = PhotoOptions {
+                normals: None,
+                env: None,
+                ..options.clone()
+            };
+            let o = photo::decompose(
+                &renderer,
+                &nets,
+                &img,
+                m.as_deref(),
+                &like_options,
+                &mut |_| {},
+            )
+            .map_err(|e| {
                 Failure::from(matedit::Error::Invalid(format!(
                     "--like {}: {e}",
                     args.like
@@ -271,6 +312,21 @@ fn load_mask(path: &Path, photo: &Image) -> Result<Vec<bool>, Failure> {
     photo::check_mask(&m, w, h)
         .map_err(|e| Failure::from(matedit::Error::file(path, e.to_string())))?;
     Ok(m)
+}
+
+/// `--normals`: a normal map of the photo's size.
+fn load_known_normals(path: &Path, photo: &Image) -> Result<NormalMap, Failure> {
+    let n = io::load_normals(path)?;
+    if (n.width, n.height) != (photo.width, photo.height) {
+        return Err(Failure::from(matedit::Error::file(
+            path,
+            format!(
+                "normal map is {}x{}, the photo {}x{}",
+                n.width, n.height, photo.width, photo.height
+            ),
+        )));
+    }
+    Ok(n)
 }
 
 /// A preset by name, or a material file.

@@ -73,13 +73,19 @@ pub fn decompose<'a>(
         .map(|p| p[0] > 0.5)
         .collect();
     let mut p = nets.predict(&input, Some(&small_mask))?;
-    let light_factors = if options.background_light {
-        match_background(&mut p.env, photo, mask)
-    } else {
-        Factors::ONE
+    let light_factors = match &options.env {
+        Some(env) => {
+            p.env = known_light(env, p.env.height, p.env.width)?;
+            Factors::GIVEN
+        }
+        None if options.background_light => match_background(&mut p.env, photo, mask),
+        None => Factors::ONE,
     };
     let alpha = raster::blur3(mask, w, h);
-    let normals = upsample_normals(&p.normals, crop, &crop_mask);
+    let mut normals = upsample_normals(&p.normals, crop, &crop_mask);
+    if let Some(known) = &options.normals {
+        take_known_normals(&mut normals, known, w, h, crop)?;
+    }
     let predict_s = t.elapsed().as_secs_f64();
 
     // refinement on the crop at the photo's resolution, box-filtered by a whole factor to
@@ -90,7 +96,11 @@ pub fn decompose<'a>(
     let inputs = Inputs::new(normals.clone(), target, Some(crop_mask.clone()))?;
     let work = inputs.downsampled(work_factor(crop.size, object_pixels, n, options));
     drop(inputs);
-    let mut fit_options = Options::new(p.material.clone(), Light::FitFrom(p.env.clone()));
+    let light = match options.env {
+        Some(_) => Light::Fixed(p.env.clone()),
+        None => Light::FitFrom(p.env.clone()),
+    };
+    let mut fit_options = Options::new(p.material.clone(), light);
     fit_options.steps = options.steps;
     // `work` is at the working size already
     fit_options.work_size = 0;
@@ -112,10 +122,12 @@ pub fn decompose<'a>(
             })
         })?;
         let mut env = f.env;
-        let material = relabel(&f.material, &mut env, REFINED_BIAS);
+        let material = match options.env {
+            Some(_) => f.material,
+            None => relabel(&f.material, &mut env, REFINED_BIAS),
+        };
         (material, env, f.losses)
     };
-    let mut normals = normals;
     let mut normal_losses = Vec::new();
     let mut work_normals = work.normals.clone();
     if options.steps > 0 && options.normal_steps > 0 {
@@ -179,6 +191,41 @@ fn work_factor(size: usize, object: usize, n: usize, options: &PhotoOptions) -> 
         b => ((object as f64 / b as f64).sqrt().ceil() as usize).min(size / n.max(1)),
     };
     side.max(pixels).max(1)
+}
+
+/// A known light brought to the nets' light size (`height` x `width`): an error when that
+/// does not divide it.
+fn known_light(env: &EnvMap, height: usize, width: usize) -> Result<EnvMap> {
+    if (env.height, env.width) == (height, width) {
+        return Ok(env.clone());
+    }
+    crate::io::resample::downsample(env, height, width).map_err(|e| invalid!("the light: {e}"))
+}
+
+/// `normals` (the crop's, at its pixels, zero off the object) take the known normals of the
+/// `w` x `h` photo at each pixel on the object where it has one (not zero): an error when
+/// the map is not the photo's size.
+fn take_known_normals(
+    normals: &mut NormalMap,
+    known: &NormalMap,
+    w: usize,
+    h: usize,
+    crop: Crop,
+) -> Result<()> {
+    if (known.width, known.height) != (w, h) {
+        return Err(invalid!(
+            "the normals are {}x{}, the photo {w}x{h}",
+            known.width,
+            known.height
+        ));
+    }
+    let at = raster::crop_values(&known.normals, w, h, crop, [0.0; 3]);
+    for (n, k) in normals.normals.iter_mut().zip(at) {
+        if *n != [0.0; 3] && k != [0.0; 3] {
+            *n = k;
+        }
+    }
+    Ok(())
 }
 
 /// The size (width, height) a `w` x `h` photo is shown to nets of input side `n` at: `n`

@@ -89,6 +89,8 @@ pub enum LevelFrom {
     /// A background too dark to say (a swatch on black): the photo taken as exposed for a
     /// grey card, [`EXPOSED_LEVEL`].
     GreyCard,
+    /// Known: given with the photo ([`PhotoOptions::env`](super::PhotoOptions::env)).
+    Given,
 }
 
 impl LevelFrom {
@@ -98,6 +100,7 @@ impl LevelFrom {
             LevelFrom::Nets => "nets",
             LevelFrom::Background => "background",
             LevelFrom::GreyCard => "grey card",
+            LevelFrom::Given => "given",
         }
     }
 }
@@ -115,6 +118,11 @@ impl Factors {
     pub const ONE: Factors = Factors {
         gains: [1.0; 3],
         from: LevelFrom::Nets,
+    };
+    /// A light given with the photo, as it was given.
+    pub const GIVEN: Factors = Factors {
+        gains: [1.0; 3],
+        from: LevelFrom::Given,
     };
 }
 

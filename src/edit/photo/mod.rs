@@ -78,6 +78,14 @@ pub struct PhotoOptions {
     /// The predicted light takes the background's mean radiance before the refinement, or
     /// on black a grey card's exposure ([`light`]); false keeps the nets' level.
     pub background_light: bool,
+    /// The object's normals, known (camera frame, the photo's size), in place of the nets':
+    /// from a depth camera or another estimator. A pixel on the object without one (zero)
+    /// takes the nets'.
+    pub normals: Option<NormalMap>,
+    /// The light, known (a lat-long map in the photo's linear units, whose size the nets'
+    /// light size divides), in place of the nets': brought to their size, neither matched to
+    /// the background nor refined; only the material is.
+    pub env: Option<EnvMap>,
 }
 
 impl Default for PhotoOptions {
@@ -92,6 +100,8 @@ impl Default for PhotoOptions {
             net_size: 0,
             detail: 1.0,
             background_light: true,
+            normals: None,
+            env: None,
         }
     }
 }
@@ -132,7 +142,8 @@ pub struct Decomposition {
     /// after each step taken (empty without it).
     pub normal_losses: Vec<f64>,
     /// The factors the predicted light was scaled by per channel to take the background's
-    /// level (or the grey card's) in grey (ones where it was not: [`light`]).
+    /// level (or the grey card's) in grey (ones where it was not, or where the light was
+    /// given: [`light`]).
     pub light_factors: light::Factors,
     /// The object's normals at the size edits render at (at most [`RENDER_SIZE`] a side,
     /// over the crop).
