@@ -148,7 +148,7 @@ def _photo(name: str, a) -> np.ndarray:
 
 
 def edit(photo, material=None, *, like=None, mask=None, like_mask=None, steps=20, weights=None, device="auto", box=None, points=None, detail=1.0,
-         mirror=True) -> dict:
+         mirror=True, normals=None, env=None) -> dict:
     """The object in `photo` made of another material, as `matedit edit` does (docs/edit.md).
 
     photo: (H, W, 3), linear float32 or 8-bit sRGB (uint8). material: a preset name or
@@ -162,11 +162,14 @@ def edit(photo, material=None, *, like=None, mask=None, like_mask=None, steps=20
     detail: how much of the photo's own detail the edit keeps, 0 to 1 (1: the photo with the
     shading changed to the new material's; 0: the re-rendered object alone). mirror: the nets
     also see the photo mirrored left to right and their answers are averaged (False: half
-    the nets' time, as `matedit edit --no-mirror`).
+    the nets' time, as `matedit edit --no-mirror`). normals: (H, W, 3) float32, the object's
+    normals known otherwise (camera frame; a zero normal takes the nets'), and env: (h, w, 3)
+    float32, a known lat-long light in the photo's units (the nets' 16 x 32 dividing it; only
+    the material is refined, and edits render under it unblurred), as `--normals` and `--env`.
 
     Returns a dict: "edit" (H, W, 3) linear, "mask" and "alpha" (H, W), "normals" at the
     crop (S, S, 3) and "crop" (x0, y0, S), "env" (the refined light, blurred as edits
-    render under it), "material" and "predicted_material" (108,) of the photo's object,
+    render under it; or the known light), "material" and "predicted_material" (108,) of the photo's object,
     "psnr_predicted" and "psnr_refined" (dB, the re-rendered photo against the photo, with
     the light before its blur), "losses", "seconds".
     """
@@ -189,4 +192,5 @@ def edit(photo, material=None, *, like=None, mask=None, like_mask=None, steps=20
             if len(p) not in (2, 3):
                 raise ValueError(f"points: {p!r} is not (x, y) or (x, y, on_object)")
             pts.append((int(p[0]), int(p[1]), bool(p[2]) if len(p) == 3 else True))
-    return edit_photo(photo, np.ascontiguousarray(m), mask, steps, weights, device, bounds, pts, detail, mirror)
+    known = [None if a is None else np.ascontiguousarray(a, dtype=np.float32) for a in (normals, env)]
+    return edit_photo(photo, np.ascontiguousarray(m), mask, steps, weights, device, bounds, pts, detail, mirror, *known)

@@ -22,10 +22,11 @@ pub(crate) fn builtin_weights(py: Python<'_>) -> Bound<'_, pyo3::types::PyBytes>
 /// `matedit edit` on arrays: the photo (H, W, 3) linear float32, the new material's control
 /// points (108,), the object's mask (H, W) bool or None (the nets find it), or a box
 /// (x0, y0, x1, y1) and points (x, y) on the object or (x, y, False) off it; mirror: the
-/// nets also see the photo mirrored (`Nets::with_mirror`). Returns a dict
-/// of NumPy arrays and numbers (see matedit.edit).
+/// nets also see the photo mirrored (`Nets::with_mirror`); normals (H, W, 3) and env
+/// (h, w, 3): known normals and light in place of the nets' (`PhotoOptions`). Returns a
+/// dict of NumPy arrays and numbers (see matedit.edit).
 #[pyfunction]
-#[pyo3(signature = (photo, material, mask = None, steps = 150, weights = None, device = "auto", bounds = None, points = None, detail = 1.0, mirror = true))]
+#[pyo3(signature = (photo, material, mask = None, steps = 150, weights = None, device = "auto", bounds = None, points = None, detail = 1.0, mirror = true, normals = None, env = None))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn edit_photo<'py>(
     py: Python<'py>,
@@ -39,6 +40,8 @@ pub(crate) fn edit_photo<'py>(
     points: Option<Vec<(usize, usize, bool)>>,
     detail: f32,
     mirror: bool,
+    normals: Option<PyReadonlyArrayDyn<'py, f32>>,
+    env: Option<PyReadonlyArrayDyn<'py, f32>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     use matedit::edit::photo::{self, PhotoOptions};
     let img = images("photo", &photo)?;
@@ -72,9 +75,45 @@ pub(crate) fn edit_photo<'py>(
     if !(0.0..=1.0).contains(&detail) {
         return Err(invalid(format!("detail: {detail} is outside [0, 1]")));
     }
+    let one = |what: &str, a: &PyReadonlyArrayDyn<'py, f32>| -> PyResult<_> {
+        let r = images(what, a)?;
+        if r.batched {
+            return Err(invalid(format!("{what}: one map (H, W, 3), not a batch")));
+        }
+        Ok((
+            r.width,
+            r.height,
+            r.rows.into_iter().next().unwrap_or_default(),
+        ))
+    };
+    let normals = match &normals {
+        Some(a) => {
+            let (w, h, n) = one("normals", a)?;
+            if (w, h) != (image.width, image.height) {
+                return Err(invalid(format!(
+                    "normals: shape ({h}, {w}, 3), the photo ({}, {}, 3)",
+                    image.height, image.width
+                )));
+            }
+            Some(matedit::NormalMap::new(w, h, n).map_err(py_err)?)
+        }
+        None => None,
+    };
+    let env = match &env {
+        Some(a) => {
+            let (w, h, t) = one("env", a)?;
+            Some(
+                matedit::EnvMap::new(h, w, matedit::Convention::Equirect, t)
+                    .map_err(|e| invalid(format!("env: {e}")))?,
+            )
+        }
+        None => None,
+    };
     let options = PhotoOptions {
         steps,
         detail,
+        normals,
+        env,
         ..PhotoOptions::default()
     };
     let mut pointing = photo::Pointing {

@@ -41,6 +41,27 @@ def test_edit_a_photo():
     assert np.array_equal(mirrored["predicted_material"], r["predicted_material"])
 
 
+def test_known_normals_and_light_take_the_nets_place():
+    img, mask = photo()
+    normals = np.zeros((64, 64, 3), np.float32)
+    normals[8:56, 8:56] = matedit.sphere(48)
+    sky = matedit.sky(32, 64)
+    r = matedit.edit(img, "pvc", mask=mask, steps=100, normals=normals, env=sky)
+    # the known light as given, brought to the nets' 16 x 32 (2 x 2 texels by solid angle), not blurred
+    w = np.sin((np.arange(32) + 0.5) / 32 * np.pi).reshape(16, 2, 1, 1, 1)
+    small = (sky.reshape(16, 2, 32, 2, 3) * w).sum((1, 3)) / (2 * w.sum(1).reshape(16, 1, 1))
+    assert np.allclose(r["env"], small, rtol=1e-4, atol=1e-6)
+    crop_x0, crop_y0, size = r["crop"]
+    ys, xs = np.nonzero(mask)
+    assert np.allclose(r["normals"][ys - crop_y0, xs - crop_x0], normals[ys, xs])
+    guessed = matedit.edit(img, "pvc", mask=mask, steps=100)
+    assert r["psnr_refined"] > guessed["psnr_refined"] + 3, (r["psnr_refined"], guessed["psnr_refined"])
+    with pytest.raises(ValueError, match=r"normals: shape \(32, 64, 3\), the photo \(64, 64, 3\)"):
+        matedit.edit(img, "pvc", mask=mask, normals=normals[:32])
+    with pytest.raises(ValueError, match=r"env \(the known light\): cannot make a 16x32 map from this 15x30 map"):
+        matedit.edit(img, "pvc", mask=mask, env=matedit.sky(15, 30))
+
+
 def test_bad_inputs_raise_value_error():
     img, mask = photo()
     with pytest.raises(ValueError, match="unknown preset 'nope'"):

@@ -126,6 +126,17 @@ def test_layer_light_keeps_a_uniform_light_and_puts_a_lamp_where_the_camera_sees
     assert (out[..., 0] * omega[:, None]).sum() == pytest.approx(1000 * src_omega, rel=1e-4)
 
 
+def test_texel_directions_cover_each_texel_in_turn():
+    d = make_set.texel_directions((4, 8), 3, np.random.default_rng(1))
+    assert d.shape == (4 * 8 * 9, 3)
+    assert np.allclose(np.linalg.norm(d, axis=1), 1)
+    # each run of 9 lies in its texel: theta = (r + 0.5) / 4 pi, phi = (c + 0.5) / 8 2 pi at the centres
+    rows = np.minimum((np.arccos(d[:, 1]) / np.pi * 4).astype(int), 3)
+    cols = np.minimum((np.mod(np.arctan2(d[:, 2], d[:, 0]), 2 * np.pi) / (2 * np.pi) * 8).astype(int), 7)
+    texel = np.repeat(np.arange(32), 9)
+    assert np.array_equal(rows * 8 + cols, texel)
+
+
 def test_committed_scenes_have_what_meta_promises():
     assert len(SCENES) == 6
     for scene in SCENES:

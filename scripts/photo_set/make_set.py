@@ -12,9 +12,12 @@ traced by Mitsuba 3 (shadows, interreflections). Per scene it writes:
     normals.npy              the object's true normals, H x W x 3 float32, matedit's camera frame
                              (x right, y up, z towards the viewer), zero off the object
     swatch_normals.npy       the swatch sphere's, the same way
-    light.exr  swatch_light.exr   the true light of the photo and of the swatch as the layer
-                             sees it: 32 x 64 lat-long in the camera's frame (docs/CONVENTIONS.md),
-                             in the image's linear units (exposure and white balance applied)
+    light.exr                the true light as the layer takes it: what arrives at the object's
+                             centre with the object left out (the map, the floor and the clutter,
+                             path traced), 32 x 64 lat-long in the camera's frame
+                             (docs/CONVENTIONS.md), in the photo's linear units (exposure and
+                             white balance applied)
+    swatch_light.exr         the swatch's: its map as the swatch's camera sees it, the same way
 
 Everything random comes from the scene's seed; the splits use disjoint seeds (test: even,
 tune: odd) and disjoint environment maps (TEST_ENVMAPS, TUNE_ENVMAPS).
@@ -423,6 +426,43 @@ def layer_light(src, yaw, frame, scale, size=(32, 64), supersample=4):
     return (out * np.asarray(scale, float)).astype(np.float32)
 
 
+def texel_directions(size, per_side, rng):
+    """Directions in matedit's camera frame (docs/CONVENTIONS.md, equirect) spread over
+    each texel of a `size` lat-long map: per_side^2 a texel, stratified in cos(theta) and
+    phi and jittered; returned as (rows x cols x per_side^2) x 3, texel by texel."""
+    h, w = size
+    k = per_side
+    r, c, i, j = np.meshgrid(np.arange(h), np.arange(w), np.arange(k), np.arange(k), indexing="ij")
+    u = (i + rng.random(r.shape)) / k
+    v = (j + rng.random(r.shape)) / k
+    top, bottom = np.cos(r / h * np.pi), np.cos((r + 1) / h * np.pi)
+    cos_t = top + u * (bottom - top)  # uniform in solid angle over the texel
+    phi = (c + v) / w * 2 * np.pi
+    sin_t = np.sqrt(np.clip(1 - cos_t ** 2, 0, 1))
+    return np.stack([np.cos(phi) * sin_t, cos_t, np.sin(phi) * sin_t], -1).reshape(-1, 3)
+
+
+def probe_light(mi, d, point, frame, scale, size=(32, 64), per_side=8, seed=0):
+    """The light at `point` of the scene `d` (left without the object) as the layer
+    takes it from a camera of `frame`: each texel of a `size` lat-long map the mean
+    radiance, path traced, arriving at the point from the directions over it (the floor,
+    the clutter and the map, with their shadows and bounces), times `scale` per channel."""
+    import drjit as dr
+    directions = texel_directions(size, per_side, np.random.default_rng(seed)) @ frame
+    n = len(directions)
+    scene = mi.load_dict(d)
+    sampler = mi.load_dict({"type": "independent"})
+    sampler.seed(seed, n)
+    origin = np.broadcast_to(np.asarray(point, dtype=np.float32), (n, 3))
+    ray = mi.Ray3f(mi.Point3f(*(mi.Float(np.ascontiguousarray(origin[:, k])) for k in range(3))),
+                   mi.Vector3f(*(mi.Float(directions[:, k].astype(np.float32)) for k in range(3))))
+    radiance, _, _ = scene.integrator().sample(scene, sampler, ray)
+    rgb = np.stack([np.array(radiance[k]) for k in range(3)], -1)
+    dr.eval()
+    h, w = size
+    return (rgb.reshape(h, w, per_side * per_side, 3).mean(2) * np.asarray(scale, float)).astype(np.float32)
+
+
 def true_normals(mi, d, frame, mask):
     """The object's shading normals in scene `d` (its first hit), in matedit's camera
     frame, zero off `mask`."""
@@ -439,9 +479,10 @@ def envmap(mi, name, yaw):
             "to_world": mi.ScalarTransform4f().rotate([0, 1, 0], yaw)}
 
 
-def scene_dict(mi, scene, material, size, spp, workdir, texture_path, tile, mask_pass=False):
+def scene_dict(mi, scene, material, size, spp, workdir, texture_path, tile, mask_pass=False, no_object=False):
     """The scene with the object in `material`; with mask_pass, the object glows and
-    everything else is black, so that a render is the object's visible coverage."""
+    everything else is black, so that a render is the object's visible coverage; with
+    no_object, the object is left out (the floor, the clutter and the map alone)."""
     width, height = size
     origin, target, _ = camera(scene, width / height)
     black = {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0, 0, 0]}}
@@ -454,7 +495,7 @@ def scene_dict(mi, scene, material, size, spp, workdir, texture_path, tile, mask
     else:
         d["integrator"] = {"type": "path", "max_depth": 8}
         d["env"] = envmap(mi, scene["envmap"], scene["envmap_yaw"])
-        shapes = object_shapes(mi, scene, bsdf(material), workdir)
+        shapes = [] if no_object else object_shapes(mi, scene, bsdf(material), workdir)
     f = floor(mi, scene, width / height, texture_path, tile)
     if mask_pass:
         f["bsdf"] = black
@@ -560,6 +601,8 @@ def make_scene(mi, scene, size, spp, out, write_exr, balance_error=None):
         origin, target, _ = camera(scene, width / height)
         frame = camera_frame(origin, target)
         normals = true_normals(mi, with_object(scene["material"], spp), frame, mask)
+        probe = probe_light(mi, with_object(None, spp, no_object=True), [0, 0.5 * scene["object_height"], 0],
+                            frame, np.ones(3), seed=scene["seed"])
     side = min(width, height)
     swatch = render(mi, swatch_dict(mi, scene, side, spp, bsdf(scene["edit_material"])))
     swatch_mask = render(mi, swatch_dict(mi, scene, side, 16, None))[..., 0] > 0.5
@@ -583,8 +626,7 @@ def make_scene(mi, scene, size, spp, out, write_exr, balance_error=None):
     gains = np.asarray(scene.get("white_balance", np.ones(3)))
     np.save(os.path.join(out, "normals.npy"), normals)
     np.save(os.path.join(out, "swatch_normals.npy"), swatch_normals)
-    light = layer_light(load_map(mi, scene["envmap"]), scene["envmap_yaw"], frame, gains * exposure)
-    mi.Bitmap(light).write(os.path.join(out, "light.exr"))
+    mi.Bitmap((probe * gains * exposure).astype(np.float32)).write(os.path.join(out, "light.exr"))
     # the swatch's camera looks down -z from +z with up y: its frame is the world's
     light = layer_light(load_map(mi, scene["swatch_envmap"]), scene["swatch_envmap_yaw"], np.eye(3),
                         swatch_gains * swatch_exposure)

@@ -21,9 +21,11 @@ Examples:
   matedit edit photo.jpg --material gold -o out/ --box 120,80,410,360
   matedit edit photo.jpg --material gold -o out/ --point 250,200 --not 260,330
   matedit edit photo.exr --like other.jpg -o out/          (the other photo's material)
+  matedit edit photo.exr --material gold -o out/ --mask m.png --env probe.exr --normals n.npy
+                                                           (a light and normals you measured)
 
 Writes OUT_DIR/edit.(png|jpg|exr) (the input's kind), normals.png, mask.png, light.exr
-(the refined light, blurred as the edit renders under it), material.json, sphere.png
+(the light the edit renders under: the refined light blurred, or --env's), material.json, sphere.png
 (the refined material on a sphere under the built-in sky), compare.png (photo | edit |
 normals | sphere) and report.json (stage times, PSNR of the re-rendered photo before and
 after refinement). A PNG's alpha is its mask unless --mask,
@@ -87,7 +89,7 @@ pub struct Args {
     normals: Option<PathBuf>,
     /// The light, known, in place of the nets': a lat-long map (EXR or NPY, the camera's
     /// frame, the photo's linear units) that the nets' light size divides; only the material
-    /// is refined.
+    /// is refined, and the edit renders under the light as it is (not blurred).
     #[arg(long, value_name = "FILE")]
     env: Option<PathBuf>,
     /// Weights of the nets (default: the ones built in; docs/nets_card.md).

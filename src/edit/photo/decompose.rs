@@ -137,7 +137,11 @@ pub fn decompose<'a>(
         work_normals = refined;
     }
     let psnr_refined = judge(&work_normals, &material, &env)?;
-    let env = blur(&env, EDIT_LIGHT_BLUR);
+    // a known light's detail is real; the refined light's below its broad shape is not
+    let env = match options.env {
+        Some(_) => env,
+        None => blur(&env, EDIT_LIGHT_BLUR),
+    };
     let (render_normals, coverage) = render_grid(&normals, &crop_mask, crop.size.min(RENDER_SIZE));
     let mut d = Decomposition {
         width: w,
@@ -199,7 +203,8 @@ fn known_light(env: &EnvMap, height: usize, width: usize) -> Result<EnvMap> {
     if (env.height, env.width) == (height, width) {
         return Ok(env.clone());
     }
-    crate::io::resample::downsample(env, height, width).map_err(|e| invalid!("the light: {e}"))
+    crate::io::resample::downsample(env, height, width)
+        .map_err(|e| invalid!("env (the known light): {e}"))
 }
 
 /// `normals` (the crop's, at its pixels, zero off the object) take the known normals of the

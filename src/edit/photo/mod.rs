@@ -84,7 +84,8 @@ pub struct PhotoOptions {
     pub normals: Option<NormalMap>,
     /// The light, known (a lat-long map in the photo's linear units, whose size the nets'
     /// light size divides), in place of the nets': brought to their size, neither matched to
-    /// the background nor refined; only the material is.
+    /// the background, refined nor blurred (its detail is real); only the material is
+    /// refined.
     pub env: Option<EnvMap>,
 }
 
@@ -128,7 +129,8 @@ pub struct Decomposition {
     /// The refined material (the prediction without refinement).
     pub material: Material,
     /// The light edits render under: the refined light (the prediction without
-    /// refinement) blurred by [`light::EDIT_LIGHT_BLUR`] ([`light::blur`]).
+    /// refinement) blurred by [`light::EDIT_LIGHT_BLUR`] ([`light::blur`]), or the known
+    /// light ([`PhotoOptions::env`]) as it was given.
     pub env: EnvMap,
     /// PSNR (dB) of I' = R(n', m', L') against the photo over the object, with the
     /// predictions and after refinement (with the refined light before its blur), at the
