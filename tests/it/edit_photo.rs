@@ -7,103 +7,22 @@
 use std::path::{Path, PathBuf};
 
 use crate::common;
+use crate::photos::{photo, photo_on, red_blob, wide_photo};
 
-use matedit::io::{self, Preview};
-use matedit::shapes::{self, Rotation, Shape, View};
-use matedit::{Batch, Camera, Convention, Device, Renderer, Scene};
-
-/// A PNG photo of `shape` (its seed, turned) made of `preset` under the built-in sky,
-/// `size` pixels square, on a grey background; and its mask as a PNG.
-fn photo(dir: &Path, name: &str, shape: &str, preset: &str, size: usize) -> (PathBuf, PathBuf) {
-    wide_photo(dir, name, shape, preset, (size, size))
-}
-
-/// [`photo`], `width` x `height` pixels.
-fn wide_photo(
-    dir: &Path,
-    name: &str,
-    shape: &str,
-    preset: &str,
-    size: (usize, usize),
-) -> (PathBuf, PathBuf) {
-    photo_on(dir, name, shape, preset, size, 0.18)
-}
-
-/// [`wide_photo`] on a background of linear grey `background`.
-fn photo_on(
-    dir: &Path,
-    name: &str,
-    shape: &str,
-    preset: &str,
-    (width, height): (usize, usize),
-    background: f32,
-) -> (PathBuf, PathBuf) {
-    let (normals, mask) = true_normals(shape, (width, height));
-    let scene = Scene {
-        normals,
-        env: matedit::builtin_sky::procedural_env(16, 32, Convention::Equirect),
-        material: matedit::presets::lookup(preset).unwrap(),
-        camera: Camera::Orthographic,
-    };
-    let mut img = Renderer::new(Device::Cpu)
-        .unwrap()
-        .render(&Batch::single(scene).unwrap())
-        .unwrap()
-        .remove(0);
-    for (p, &m) in img.pixels.iter_mut().zip(&mask) {
-        if !m {
-            *p = [background; 3];
-        }
-    }
-    let (p, mpath) = (
-        dir.join(format!("{name}.png")),
-        dir.join(format!("{name}_mask.png")),
-    );
-    std::fs::write(
-        &p,
-        io::png::encode_preview(&img, &Preview::default()).unwrap(),
-    )
-    .unwrap();
-    std::fs::write(&mpath, io::png::encode_mask(width, height, &mask).unwrap()).unwrap();
-    (p, mpath)
-}
-
-/// The normals and mask of the photos' `shape` (its seed, turned) at `width` x `height`.
-fn true_normals(shape: &str, (width, height): (usize, usize)) -> (matedit::NormalMap, Vec<bool>) {
-    let spec: Shape = shape.parse().unwrap();
-    let view = View {
-        width,
-        height,
-        camera: Camera::Orthographic,
-        rotation: Rotation {
-            yaw: 30.0,
-            pitch: 20.0,
-            roll: 0.0,
-        },
-        flat: false,
-        margin: 0.15,
-    };
-    shapes::render_normals(&spec.mesh(0), &view).unwrap()
-}
-
-/// [`photo`]'s red blob, 96 pixels square, loaded back: the photo (linear) and its mask.
-fn red_blob(dir: &Path) -> (matedit::Image, Vec<bool>) {
-    let (a, a_mask) = photo(dir, "a", "blobby:seed=3", "plastic-red", 96);
-    let (_, _, mask) = io::load_mask(&a_mask).unwrap();
-    (io::load_image(&a).unwrap(), mask)
-}
+use matedit::io;
+use matedit::{Device, Renderer};
 
 fn small_weights() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/nets/weights.safetensors")
 }
 
-fn edit(args: &[&std::ffi::OsStr]) -> assert_cmd::Command {
+pub(crate) fn edit(args: &[&std::ffi::OsStr]) -> assert_cmd::Command {
     let mut cmd = assert_cmd::cargo::cargo_bin_cmd!("matedit");
     cmd.arg("edit").args(args).args(["--device", "cpu"]);
     cmd
 }
 
-fn report(dir: &Path) -> serde_json::Value {
+pub(crate) fn report(dir: &Path) -> serde_json::Value {
     serde_json::from_slice(&std::fs::read(dir.join("report.json")).unwrap()).unwrap()
 }
 
@@ -501,128 +420,4 @@ fn nets_of_photo_frames_see_a_photo_at_its_own_shape() {
         let square = found(&tmp.path().join(format!("{name}_square")), &[]);
         assert!(square.as_ref() != Some(&framed), "{name}");
     }
-}
-
-/// The photo of [`photo`]'s blob with its true normals and light given: they take the
-/// nets' place (the light neither matched to the background, refined nor blurred, the
-/// level "given"), and with them the refined material re-renders the photo far better than
-/// from the nets' guesses (34 against 16 dB when written).
-#[test]
-fn known_normals_and_light_take_the_nets_place() {
-    use matedit::edit::photo::light::LevelFrom;
-    use matedit::edit::photo::{self, PhotoOptions};
-    let tmp = tempfile::tempdir().unwrap();
-    let (img, mask) = red_blob(tmp.path());
-    let (normals, _) = true_normals("blobby:seed=3", (96, 96));
-    // the light at twice the nets' size: brought down to theirs
-    let env = matedit::builtin_sky::procedural_env(32, 64, Convention::Equirect);
-    let renderer = Renderer::new(Device::Cpu).unwrap();
-    let nets = matedit::nets::Nets::builtin().unwrap();
-    let decompose = |options: &PhotoOptions| {
-        photo::decompose(
-            &renderer,
-            &nets,
-            &img,
-            Some(mask.as_slice()),
-            options,
-            &mut |_| {},
-        )
-        .unwrap()
-    };
-    let guessed = decompose(&PhotoOptions::default());
-    let known = decompose(&PhotoOptions {
-        normals: Some(normals.clone()),
-        env: Some(env.clone()),
-        // only the material moves, and 20 steps do not bring it from the nets' guess
-        steps: 200,
-        ..PhotoOptions::default()
-    });
-    assert_eq!(known.light_factors.from, LevelFrom::Given);
-    let small = matedit::io::resample::downsample(&env, 16, 32).unwrap();
-    assert_eq!(known.predicted_env, small);
-    // neither refined nor blurred
-    assert_eq!(known.env, small);
-    let c = known.crop;
-    let mut on = 0;
-    for (i, n) in known.normals.normals.iter().enumerate() {
-        let (x, y) = (c.x0 + (i % c.size) as i64, c.y0 + (i / c.size) as i64);
-        if !(0..96).contains(&x) || !(0..96).contains(&y) {
-            continue;
-        }
-        let (x, y) = (x as usize, y as usize);
-        if mask[y * 96 + x] {
-            assert_eq!(*n, normals.normals[y * 96 + x], "pixel {x}, {y}");
-            on += 1;
-        }
-    }
-    assert_eq!(on, mask.iter().filter(|&&m| m).count());
-    eprintln!(
-        "I' refined: {:.2} dB from the nets, {:.2} dB known",
-        guessed.psnr_refined, known.psnr_refined
-    );
-    assert!(known.psnr_refined > 30.0, "{}", known.psnr_refined);
-    assert!(known.psnr_refined > guessed.psnr_refined + 3.0);
-}
-
-/// `--normals` and `--env` on the command line: taken (the report says the light was
-/// given), and refused in one line, exit 2, nothing written, when the normal map is not the
-/// photo's size or the nets' light size does not divide the map.
-#[test]
-fn known_normals_and_light_from_files() {
-    let tmp = tempfile::tempdir().unwrap();
-    let (a, a_mask) = photo(tmp.path(), "a", "capsule:seed=1", "plastic-red", 48);
-    let normals = tmp.path().join("normals.npy");
-    let up = vec![[0.0f32, 0.0, 1.0]; 48 * 48];
-    std::fs::write(&normals, io::npy::encode_rgb(48, 48, &up)).unwrap();
-    let small = tmp.path().join("small.npy");
-    std::fs::write(&small, io::npy::encode_rgb(40, 48, &up[..40 * 48])).unwrap();
-    let light = tmp.path().join("light.exr");
-    let env = matedit::builtin_sky::procedural_env(16, 32, Convention::Equirect);
-    std::fs::write(&light, io::exr::encode_rgb(32, 16, &env.texels).unwrap()).unwrap();
-    let odd = tmp.path().join("odd.exr");
-    std::fs::write(
-        &odd,
-        io::exr::encode_rgb(30, 15, &env.texels[..450]).unwrap(),
-    )
-    .unwrap();
-    let out = tmp.path().join("out");
-    let base = [
-        a.as_os_str(),
-        "--mask".as_ref(),
-        a_mask.as_os_str(),
-        "--material".as_ref(),
-        "gold".as_ref(),
-        "--steps".as_ref(),
-        "2".as_ref(),
-        "-o".as_ref(),
-        out.as_os_str(),
-    ];
-    let with = |extra: &[&std::ffi::OsStr]| {
-        let mut all = base.to_vec();
-        all.extend_from_slice(extra);
-        edit(&all)
-    };
-    for (extra, want) in [
-        (
-            ["--normals".as_ref(), small.as_os_str()],
-            "normal map is 40x48",
-        ),
-        (["--env".as_ref(), odd.as_os_str()], "odd.exr"),
-    ] {
-        let o = with(&extra).output().unwrap();
-        let err = String::from_utf8_lossy(&o.stderr);
-        assert_eq!(o.status.code(), Some(2), "{want}: {err}");
-        assert!(err.contains(want), "{want}: {err}");
-        assert_eq!(err.trim().lines().count(), 1, "{err}");
-        assert!(!out.exists(), "{want}: wrote {}", out.display());
-    }
-    with(&[
-        "--normals".as_ref(),
-        normals.as_os_str(),
-        "--env".as_ref(),
-        light.as_os_str(),
-    ])
-    .assert()
-    .success();
-    assert_eq!(report(&out)["light_level_from"], "given");
 }

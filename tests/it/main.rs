@@ -38,10 +38,12 @@ mod shapes_files;
 mod validation;
 // what uses the layer: materials, editing, networks, datasets, the web editor
 mod edit;
+mod edit_known;
 mod edit_photo;
 mod fit;
 mod measured;
 mod nets;
+mod photos;
 mod pointing;
 mod serve;
 mod synth;
