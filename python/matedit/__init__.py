@@ -147,7 +147,7 @@ def _photo(name: str, a) -> np.ndarray:
     return a
 
 
-def edit(photo, material=None, *, like=None, mask=None, like_mask=None, steps=20, weights=None, device="auto", box=None, points=None, detail=1.0,
+def edit(photo, material=None, *, like=None, mask=None, like_mask=None, steps=None, weights=None, device="auto", box=None, points=None, detail=1.0,
          mirror=True, normals=None, env=None) -> dict:
     """The object in `photo` made of another material, as `matedit edit` does (docs/edit.md).
 
@@ -157,7 +157,8 @@ def edit(photo, material=None, *, like=None, mask=None, like_mask=None, steps=20
     "no single object found" where none stands out). box: (x0, y0, x1, y1) in pixels
     around the object (x1, y1 exclusive); points: [(x, y), ...] on the object, (x, y, False)
     off it: the object is cut out where pointed at, as `matedit edit --box/--point/--not`.
-    steps: refinement steps (0: the predictions alone). weights: a weights file (None: the
+    steps: refinement steps (0: the predictions alone; None: 20, or 100 with both normals and
+    env known). weights: a weights file (None: the
     built-in nets).
     detail: how much of the photo's own detail the edit keeps, 0 to 1 (1: the photo with the
     shading changed to the new material's; 0: the re-rendered object alone). mirror: the nets

@@ -26,14 +26,14 @@ pub(crate) fn builtin_weights(py: Python<'_>) -> Bound<'_, pyo3::types::PyBytes>
 /// (h, w, 3): known normals and light in place of the nets' (`PhotoOptions`). Returns a
 /// dict of NumPy arrays and numbers (see matedit.edit).
 #[pyfunction]
-#[pyo3(signature = (photo, material, mask = None, steps = 150, weights = None, device = "auto", bounds = None, points = None, detail = 1.0, mirror = true, normals = None, env = None))]
+#[pyo3(signature = (photo, material, mask = None, steps = None, weights = None, device = "auto", bounds = None, points = None, detail = 1.0, mirror = true, normals = None, env = None))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn edit_photo<'py>(
     py: Python<'py>,
     photo: PyReadonlyArrayDyn<'py, f32>,
     material: PyReadonlyArrayDyn<'py, f64>,
     mask: Option<PyReadonlyArrayDyn<'py, bool>>,
-    steps: usize,
+    steps: Option<usize>,
     weights: Option<PathBuf>,
     device: &str,
     bounds: Option<(usize, usize, usize, usize)>,
@@ -108,6 +108,11 @@ pub(crate) fn edit_photo<'py>(
             )
         }
         None => None,
+    };
+    let steps = match steps {
+        Some(k) => k,
+        None if normals.is_some() && env.is_some() => photo::KNOWN_STEPS,
+        None => PhotoOptions::default().steps,
     };
     let options = PhotoOptions {
         steps,

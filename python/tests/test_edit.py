@@ -46,7 +46,10 @@ def test_known_normals_and_light_take_the_nets_place():
     normals = np.zeros((64, 64, 3), np.float32)
     normals[8:56, 8:56] = matedit.sphere(48)
     sky = matedit.sky(32, 64)
-    r = matedit.edit(img, "pvc", mask=mask, steps=100, normals=normals, env=sky)
+    # both known: 100 refinement steps unless told otherwise, where one alone keeps 20
+    r = matedit.edit(img, "pvc", mask=mask, normals=normals, env=sky)
+    assert len(r["losses"]) == 100
+    assert len(matedit.edit(img, "pvc", mask=mask, normals=normals)["losses"]) == 20
     # the known light as given, brought to the nets' 16 x 32 (2 x 2 texels by solid angle), not blurred
     w = np.sin((np.arange(32) + 0.5) / 32 * np.pi).reshape(16, 2, 1, 1, 1)
     small = (sky.reshape(16, 2, 32, 2, 3) * w).sum((1, 3)) / (2 * w.sum(1).reshape(16, 1, 1))

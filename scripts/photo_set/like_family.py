@@ -21,6 +21,11 @@ photo, then the photos).
 
 The swatches and the true spheres are kept in OUT and reused by a later run into the same
 folder (they do not depend on matedit): a second binary or weights cost only the reads.
+
+`--known-light` reads each material as the layer fits it under the swatch's true light and
+normals instead (`matedit fit --env light.exr --normals normals.npy`, the light as
+make_set.py's swatch_light.exr: what the layer can tell of the material when nothing else
+is guessed).
 """
 
 import argparse
@@ -34,8 +39,8 @@ import numpy as np
 from PIL import Image
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from make_set import (SPLITS, SWATCHES, bsdf, grey_card_exposure, render, save_png, swatch_dict,  # noqa: E402
-                      to_srgb8, white_balance, white_sphere)
+from make_set import (SPLITS, SWATCHES, bsdf, grey_card_exposure, layer_light, load_map, render,  # noqa: E402
+                      save_png, swatch_dict, to_srgb8, true_normals, white_balance, white_sphere)
 
 FAMILY_DELTA_E = 20.0
 SIDE = 128  # the swatch photos' size
@@ -62,11 +67,15 @@ def disc(n):
 # -----------------------------------------------------------------------------
 # Mitsuba: the swatches and the true materials under a uniform light
 
+def swatch_scene(envmap, seed):
+    return {"seed": seed, "swatch_envmap": envmap, "swatch_envmap_yaw": float(seed * 47 % 360)}
+
+
 def swatch(mi, material, envmap, seed, work, balance_error=None):
     photo_png, mask_png = os.path.join(work, "swatch.png"), os.path.join(work, "mask.png")
     if os.path.exists(photo_png) and os.path.exists(mask_png):
         return np.asarray(Image.open(photo_png)), np.asarray(Image.open(mask_png)) > 127
-    scene = {"seed": seed, "swatch_envmap": envmap, "swatch_envmap_yaw": float(seed * 47 % 360)}
+    scene = swatch_scene(envmap, seed)
     photo = render(mi, swatch_dict(mi, scene, SIDE, 64, bsdf(material)))
     mask = render(mi, swatch_dict(mi, scene, SIDE, 16, None))[..., 0] > 0.5
     white = white_sphere(mi, scene)
@@ -91,13 +100,34 @@ def true_albedo(mi, material, work):
     return image[mask].mean(0), image
 
 
+def swatch_truth(mi, material, envmap, seed, work, balance_error=None):
+    """The swatch's true light (as make_set.py's swatch_light.exr) and normals, written to
+    work/light.exr and work/normals.npy (kept when there)."""
+    light, normals = os.path.join(work, "light.exr"), os.path.join(work, "normals.npy")
+    if not (os.path.exists(light) and os.path.exists(normals)):
+        scene = swatch_scene(envmap, seed)
+        mask = render(mi, swatch_dict(mi, scene, SIDE, 16, None))[..., 0] > 0.5
+        np.save(normals, true_normals(mi, swatch_dict(mi, scene, SIDE, 16, bsdf(material)), np.eye(3), mask))
+        white = white_sphere(mi, scene)
+        gains = np.ones(3) if balance_error is None else white_balance(white, [seed, 2], balance_error)
+        scale = gains * grey_card_exposure(white, gains)
+        mi.Bitmap(layer_light(load_map(mi, envmap), scene["swatch_envmap_yaw"], np.eye(3), scale)).write(light)
+    return light, normals
+
+
 # -----------------------------------------------------------------------------
 # matedit: the material read from a swatch, under the same light
 
-def read_albedo(binary, photo_png, mask_png, work, extra):
-    out = os.path.join(work, "edit")
-    cmd = [binary, "edit", photo_png, "--like", photo_png, "--mask", mask_png, "--like-mask", mask_png,
-           "-o", out, "--device", "cpu", *extra]
+def read_albedo(binary, photo_png, mask_png, work, extra, known=None):
+    """The material matedit reads from the swatch (`edit --like`, or with `known` = (light,
+    normals) `fit` under them) on a sphere under a uniform white light: (mean, image)."""
+    out = os.path.join(work, "edit" if known is None else "fit")
+    if known is None:
+        cmd = [binary, "edit", photo_png, "--like", photo_png, "--mask", mask_png, "--like-mask", mask_png,
+               "-o", out, "--device", "cpu", *extra]
+    else:
+        cmd = [binary, "fit", "--image", photo_png, "--mask", mask_png, "--env", known[0], "--env-size", "16x32",
+               "--normals", known[1], "-o", out, "--device", "cpu"]
     subprocess.run(cmd, check=True, capture_output=True)
     white = os.path.join(work, "white.npy")
     np.save(white, np.ones((16, 32, 3), np.float32))
@@ -120,6 +150,8 @@ def main():
     ap.add_argument("--maps", type=int, default=8, help="how many of the split's HDRIs")
     ap.add_argument("--white-balance", type=float, metavar="ERROR",
                     help="balance each swatch for its light, as make_set.py's --white-balance (use a new OUT)")
+    ap.add_argument("--known-light", action="store_true",
+                    help="read each material by `matedit fit` under the swatch's true light and normals")
     args = ap.parse_args()
     if args.white_balance is not None and not args.white_balance >= 0:
         ap.error(f"--white-balance {args.white_balance}: the error is a spread, 0 or more")
@@ -143,8 +175,10 @@ def main():
             work = os.path.join(args.out, name, envmap)
             os.makedirs(work, exist_ok=True)
             photo, mask = swatch(mi, material, envmap, 100 * mi_index + k, work, args.white_balance)
+            known = swatch_truth(mi, material, envmap, 100 * mi_index + k, work, args.white_balance) \
+                if args.known_light else None
             got, got_image = read_albedo(args.matedit, os.path.join(work, "swatch.png"), os.path.join(work, "mask.png"),
-                                         work, extra)
+                                         work, extra, known)
             delta = float(np.linalg.norm(lab(got) - lab(truth)))
             r["maps"][envmap] = {"read_rgb": got.tolist(), "read_lab": lab(got).tolist(), "delta_e": delta}
             row.append(got_image)
@@ -158,9 +192,10 @@ def main():
               f"in family {r['in_family']}/{len(maps)} ({time.time() - t0:.0f} s)", flush=True)
 
     with open(os.path.join(args.out, "results.json"), "w") as f:
-        json.dump({"split": args.split, "maps": maps, "weights": args.weights or "built-in", "family_delta_e": FAMILY_DELTA_E,
+        json.dump({"split": args.split, "maps": maps, "weights": args.weights or "built-in", "known_light": args.known_light,
+                   "family_delta_e": FAMILY_DELTA_E,
                    "materials": results}, f, indent=1)
-    lines = [f"Weights: {args.weights or 'built-in'}; maps: {', '.join(maps)}; in the family: Delta E <= {FAMILY_DELTA_E:g}.", "",
+    lines = [f"{'Read under the true light; ' if args.known_light else ''}Weights: {args.weights or 'built-in'}; maps: {', '.join(maps)}; in the family: Delta E <= {FAMILY_DELTA_E:g}.", "",
              "| material | true L\\* a\\* b\\* | read L\\* a\\* b\\* (median) | Delta E median | worst | in the family |",
              "|---|---|---|---:|---:|---:|"]
     fmt = lambda v: " ".join(f"{x:.0f}" for x in v)

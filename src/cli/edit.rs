@@ -64,9 +64,9 @@ pub struct Args {
     mask: Option<PathBuf>,
     #[command(flatten)]
     pointing: PointingArgs,
-    /// Refinement steps through the layer.
-    #[arg(long, value_name = "K", default_value_t = PhotoOptions::default().steps)]
-    steps: usize,
+    /// Refinement steps through the layer [default: 20; 100 with both --normals and --env].
+    #[arg(long, value_name = "K")]
+    steps: Option<usize>,
     /// Refinement steps of the normals after material and light (0: keep the nets' normals).
     #[arg(long, value_name = "J", default_value_t = PhotoOptions::default().normal_steps)]
     normal_steps: usize,
@@ -156,8 +156,13 @@ pub fn run(args: &Args) -> Result<(), Failure> {
         }
         None => None,
     };
+    let steps = match args.steps {
+        Some(k) => k,
+        None if known_normals.is_some() && known_env.is_some() => photo::KNOWN_STEPS,
+        None => PhotoOptions::default().steps,
+    };
     let options = PhotoOptions {
-        steps: if args.no_refine { 0 } else { args.steps },
+        steps: if args.no_refine { 0 } else { steps },
         normal_steps: if args.no_refine { 0 } else { args.normal_steps },
         detail: args.detail,
         background_light: !args.no_background_light,
@@ -179,6 +184,10 @@ pub fn run(args: &Args) -> Result<(), Failure> {
             let like_options = PhotoOptions {
                 normals: None,
                 env: None,
+                steps: match (args.no_refine, args.steps) {
+                    (true, _) => 0,
+                    (false, k) => k.unwrap_or(PhotoOptions::default().steps),
+                },
                 ..options.clone()
             };
             let o = photo::decompose(

@@ -46,10 +46,18 @@ use crate::{EnvMap, Image, Material, NormalMap};
 /// The default of [`PhotoOptions::work_pixels`].
 pub const WORK_PIXELS: usize = 2048;
 
+/// Refinement steps where the normals and the light are both known
+/// ([`PhotoOptions::normals`], [`PhotoOptions::env`]): only the material moves, with nothing
+/// wrong in them for it to absorb, and it goes on coming closer where 20 steps (the
+/// default, chosen with the nets' normals and light) stop early for that reason
+/// (docs/edit.md, "What each guess costs").
+pub const KNOWN_STEPS: usize = 100;
+
 /// How to edit.
 #[derive(Clone, Debug)]
 pub struct PhotoOptions {
-    /// Refinement steps of material and light (0: the predictions as they are).
+    /// Refinement steps of material and light (0: the predictions as they are; 20 by
+    /// default, [`KNOWN_STEPS`] suits known normals and light).
     pub steps: usize,
     /// Refinement steps of the normals after them, material and light fixed (0: none, the
     /// default: an experiment, docs/edit.md).
