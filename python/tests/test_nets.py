@@ -97,6 +97,7 @@ def test_loss_falls_and_run_files(dataset):
     assert evaluate.main([str(out / "weights.safetensors"), str(dataset / "train"), "--json", str(js)]) == 2
     assert metrics["samples"] == 32
     for who in ("nets", "baselines"):
+        assert {"edit_psnr_db", "edit_true_normals_psnr_db", "edit_true_light_psnr_db"} <= metrics[who].keys()
         assert all(math.isfinite(v) for v in metrics[who].values()), metrics[who]
         assert 0 <= metrics[who]["mask_iou"] <= 1
         assert 0 <= metrics[who]["normals_under_11.25_pct"] <= metrics[who]["normals_under_30_pct"] <= 100

@@ -21,7 +21,9 @@ metric is over the object's pixels (the true mask), averaged over samples:
   m_t the next sample's material: PSNR (dB) over the object, peak = the target's maximum
   there; baseline: the three baselines rendered the same way. unedited_psnr_db is I / s
   itself against O (the same in both columns): O' beats leaving the photo alone by
-  edit_psnr_db - unedited_psnr_db.
+  edit_psnr_db - unedited_psnr_db. edit_true_normals_psnr_db and edit_true_light_psnr_db:
+  O' with the true normals n, or the true light L / s, in place of the guessed ones (what
+  each guess costs the edit: docs/edit.md, "What each guess costs").
 With `--at-nets-size` the nets see each image as `matedit edit` shows them a photo: resized
 to the size they were trained at (their image_size; area averaging down, bilinear up), their
 normals and mask logits brought back to the data's size bilinearly; the metrics stay at the
@@ -209,6 +211,8 @@ def _eval_batch(nets, b, probe, m_mean, l_mean, device, acc, angles, where: str,
         sph = spheres(ctrl, probe, device)
         i_p = matedit.torch.render(n, env, ctrl, device=device)
         o_p = matedit.torch.render(n, env, m_t, device=device)
+        o_true_n = matedit.torch.render(b["normals"], env, m_t, device=device)
+        o_true_l = matedit.torch.render(n, env_t, m_t, device=device)
         diffuse = matedit.torch.render(probe[0], env, white, device=device)
         for j in range(nb):
             acc[kind].append(
@@ -219,6 +223,8 @@ def _eval_batch(nets, b, probe, m_mean, l_mean, device, acc, angles, where: str,
                     "light_diffuse_psnr_db": psnr(diffuse[j], diffuse_true[j], probe[0].abs().sum(-1) > 0),
                     "render_psnr_db": psnr(i_p[j], target[j], mask[j]),
                     "edit_psnr_db": psnr(o_p[j], o[j], mask[j]),
+                    "edit_true_normals_psnr_db": psnr(o_true_n[j], o[j], mask[j]),
+                    "edit_true_light_psnr_db": psnr(o_true_l[j], o[j], mask[j]),
                     # the edit left undone: the image I itself against O
                     "unedited_psnr_db": psnr(target[j], o[j], mask[j]),
                 }
