@@ -25,7 +25,8 @@ folder (they do not depend on matedit): a second binary or weights cost only the
 `--known-light` reads each material as the layer fits it under the swatch's true light and
 normals instead (`matedit fit --env light.exr --normals normals.npy`, the light as
 make_set.py's swatch_light.exr: what the layer can tell of the material when nothing else
-is guessed).
+is guessed); `--known-light edit` as `edit --like` does with the true light given
+(`--like-env light.exr`) and the nets' normals.
 """
 
 import argparse
@@ -120,11 +121,12 @@ def swatch_truth(mi, material, envmap, seed, work, balance_error=None):
 
 def read_albedo(binary, photo_png, mask_png, work, extra, known=None):
     """The material matedit reads from the swatch (`edit --like`, or with `known` = (light,
-    normals) `fit` under them) on a sphere under a uniform white light: (mean, image)."""
-    out = os.path.join(work, "edit" if known is None else "fit")
-    if known is None:
+    normals, "fit") `fit` under them, with (light, normals, "edit") `edit --like
+    --like-env`) on a sphere under a uniform white light: (mean, image)."""
+    out = os.path.join(work, "edit" if known is None else known[2])
+    if known is None or known[2] == "edit":
         cmd = [binary, "edit", photo_png, "--like", photo_png, "--mask", mask_png, "--like-mask", mask_png,
-               "-o", out, "--device", "cpu", *extra]
+               "-o", out, "--device", "cpu", *extra] + ([] if known is None else ["--like-env", known[0]])
     else:
         cmd = [binary, "fit", "--image", photo_png, "--mask", mask_png, "--env", known[0], "--env-size", "16x32",
                "--normals", known[1], "-o", out, "--device", "cpu"]
@@ -150,8 +152,9 @@ def main():
     ap.add_argument("--maps", type=int, default=8, help="how many of the split's HDRIs")
     ap.add_argument("--white-balance", type=float, metavar="ERROR",
                     help="balance each swatch for its light, as make_set.py's --white-balance (use a new OUT)")
-    ap.add_argument("--known-light", action="store_true",
-                    help="read each material by `matedit fit` under the swatch's true light and normals")
+    ap.add_argument("--known-light", nargs="?", const="fit", choices=["fit", "edit"],
+                    help="read each material under the swatch's true light: by `matedit fit` with its true normals "
+                         "(fit, the default), or by `edit --like --like-env` with the nets' (edit)")
     args = ap.parse_args()
     if args.white_balance is not None and not args.white_balance >= 0:
         ap.error(f"--white-balance {args.white_balance}: the error is a spread, 0 or more")
@@ -175,8 +178,8 @@ def main():
             work = os.path.join(args.out, name, envmap)
             os.makedirs(work, exist_ok=True)
             photo, mask = swatch(mi, material, envmap, 100 * mi_index + k, work, args.white_balance)
-            known = swatch_truth(mi, material, envmap, 100 * mi_index + k, work, args.white_balance) \
-                if args.known_light else None
+            known = (*swatch_truth(mi, material, envmap, 100 * mi_index + k, work, args.white_balance),
+                     args.known_light) if args.known_light else None
             got, got_image = read_albedo(args.matedit, os.path.join(work, "swatch.png"), os.path.join(work, "mask.png"),
                                          work, extra, known)
             delta = float(np.linalg.norm(lab(got) - lab(truth)))
@@ -195,7 +198,7 @@ def main():
         json.dump({"split": args.split, "maps": maps, "weights": args.weights or "built-in", "known_light": args.known_light,
                    "family_delta_e": FAMILY_DELTA_E,
                    "materials": results}, f, indent=1)
-    lines = [f"{'Read under the true light; ' if args.known_light else ''}Weights: {args.weights or 'built-in'}; maps: {', '.join(maps)}; in the family: Delta E <= {FAMILY_DELTA_E:g}.", "",
+    lines = [f"{'Read under the true light (' + args.known_light + '); ' if args.known_light else ''}Weights: {args.weights or 'built-in'}; maps: {', '.join(maps)}; in the family: Delta E <= {FAMILY_DELTA_E:g}.", "",
              "| material | true L\\* a\\* b\\* | read L\\* a\\* b\\* (median) | Delta E median | worst | in the family |",
              "|---|---|---|---:|---:|---:|"]
     fmt = lambda v: " ".join(f"{x:.0f}" for x in v)

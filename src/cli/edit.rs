@@ -56,6 +56,9 @@ pub struct Args {
     /// nets find it).
     #[arg(long, value_name = "MASK", requires = "like")]
     like_mask: Option<PathBuf>,
+    /// The other photo's light, known (as --env for the photo): its material is read under it.
+    #[arg(long, value_name = "FILE", requires = "like")]
+    like_env: Option<PathBuf>,
     /// Output folder (created if missing).
     #[arg(short, long, value_name = "OUT_DIR")]
     output: PathBuf,
@@ -144,18 +147,18 @@ pub fn run(args: &Args) -> Result<(), Failure> {
         Some(path) => Some(load_known_normals(path, &photo)?),
         None => None,
     };
-    let known_env = match &args.env {
-        Some(path) => {
-            let cfg = nets.config();
-            let size = io::EnvSize::Size {
-                height: cfg.env_height,
-                width: cfg.env_width,
-            };
-            let loaded = io::load_env(path, Convention::Equirect)?;
-            Some(io::resample::fit(loaded.env, size, path)?)
-        }
-        None => None,
+    let known_light = |path: &Option<PathBuf>| -> Result<_, Failure> {
+        let Some(path) = path else { return Ok(None) };
+        let cfg = nets.config();
+        let size = io::EnvSize::Size {
+            height: cfg.env_height,
+            width: cfg.env_width,
+        };
+        let loaded = io::load_env(path, Convention::Equirect)?;
+        Ok(Some(io::resample::fit(loaded.env, size, path)?))
     };
+    let known_env = known_light(&args.env)?;
+    let like_env = known_light(&args.like_env)?;
     let steps = match args.steps {
         Some(k) => k,
         None if known_normals.is_some() && known_env.is_some() => photo::KNOWN_STEPS,
@@ -183,7 +186,7 @@ pub fn run(args: &Args) -> Result<(), Failure> {
             // what is known of the photo is not known of the other
             let like_options = PhotoOptions {
                 normals: None,
-                env: None,
+                env: like_env,
                 steps: match (args.no_refine, args.steps) {
                     (true, _) => 0,
                     (false, k) => k.unwrap_or(PhotoOptions::default().steps),

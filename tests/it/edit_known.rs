@@ -69,8 +69,8 @@ fn known_normals_and_light_take_the_nets_place() {
     assert!(known.psnr_refined > guessed.psnr_refined + 3.0);
 }
 
-/// `--normals` and `--env` on the command line: taken (the report says the light was
-/// given), and refused in one line, exit 2, nothing written, when the normal map is not the
+/// `--normals`, `--env` and `--like-env` on the command line: taken (the report says
+/// which light was given), and refused in one line, exit 2, nothing written, when the normal map is not the
 /// photo's size or the nets' light size does not divide the map.
 #[test]
 fn known_normals_and_light_from_files() {
@@ -129,5 +129,26 @@ fn known_normals_and_light_from_files() {
     ])
     .assert()
     .success();
-    assert_eq!(report(&out)["light_level_from"], "given");
+    let r = report(&out);
+    assert_eq!(r["light_level_from"], "given");
+    assert_eq!(r["like_light_level_from"], serde_json::Value::Null);
+    // the other photo's light: --like-env (here the photo itself stands for the other)
+    let other = tmp.path().join("other");
+    let mut all = base[..3].to_vec();
+    all.extend([
+        "--like".as_ref(),
+        a.as_os_str(),
+        "--like-mask".as_ref(),
+        a_mask.as_os_str(),
+        "--like-env".as_ref(),
+        light.as_os_str(),
+        "--steps".as_ref(),
+        "2".as_ref(),
+        "-o".as_ref(),
+        other.as_os_str(),
+    ]);
+    edit(&all).assert().success();
+    let r = report(&other);
+    assert_eq!(r["light_level_from"], "background");
+    assert_eq!(r["like_light_level_from"], "given");
 }
