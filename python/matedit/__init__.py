@@ -148,7 +148,7 @@ def _photo(name: str, a) -> np.ndarray:
 
 
 def edit(photo, material=None, *, like=None, mask=None, like_mask=None, steps=None, weights=None, device="auto", box=None, points=None, detail=1.0,
-         mirror=True, normals=None, env=None) -> dict:
+         mirror=True, normals=None, env=None, like_env=None) -> dict:
     """The object in `photo` made of another material, as `matedit edit` does (docs/edit.md).
 
     photo: (H, W, 3), linear float32 or 8-bit sRGB (uint8). material: a preset name or
@@ -166,7 +166,8 @@ def edit(photo, material=None, *, like=None, mask=None, like_mask=None, steps=No
     the nets' time, as `matedit edit --no-mirror`). normals: (H, W, 3) float32, the object's
     normals known otherwise (camera frame; a zero normal takes the nets'), and env: (h, w, 3)
     float32, a known lat-long light in the photo's units (the nets' 16 x 32 dividing it; only
-    the material is refined, and edits render under it unblurred), as `--normals` and `--env`.
+    the material is refined, and edits render under it unblurred), as `--normals` and `--env`;
+    like_env: the like photo's light, as `--like-env`.
 
     Returns a dict: "edit" (H, W, 3) linear, "mask" and "alpha" (H, W), "normals" at the
     crop (S, S, 3) and "crop" (x0, y0, S), "env" (the refined light, blurred as edits
@@ -179,7 +180,8 @@ def edit(photo, material=None, *, like=None, mask=None, like_mask=None, steps=No
         raise ValueError("give material or like, not both and not neither")
     if like is not None:
         grey = preset("matte-white")
-        m = edit_photo(_photo("like", like), grey, like_mask, steps, weights, device, mirror=mirror)["material"]
+        known = None if like_env is None else np.ascontiguousarray(like_env, dtype=np.float32)
+        m = edit_photo(_photo("like", like), grey, like_mask, steps, weights, device, mirror=mirror, env=known)["material"]
     elif isinstance(material, str):
         m = preset(material)
     else:

@@ -59,6 +59,10 @@ def test_known_normals_and_light_take_the_nets_place():
     assert np.allclose(r["normals"][ys - crop_y0, xs - crop_x0], normals[ys, xs])
     guessed = matedit.edit(img, "pvc", mask=mask, steps=100)
     assert r["psnr_refined"] > guessed["psnr_refined"] + 3, (r["psnr_refined"], guessed["psnr_refined"])
+    # the like photo's light: another read of the same photo's material
+    a = matedit.edit(img, like=img, mask=mask, like_mask=mask, steps=5)["edit"]
+    b = matedit.edit(img, like=img, mask=mask, like_mask=mask, steps=5, like_env=sky)["edit"]
+    assert np.isfinite(b).all() and not np.allclose(a, b)
     with pytest.raises(ValueError, match=r"normals: shape \(32, 64, 3\), the photo \(64, 64, 3\)"):
         matedit.edit(img, "pvc", mask=mask, normals=normals[:32])
     with pytest.raises(ValueError, match=r"env \(the known light\): cannot make a 16x32 map from this 15x30 map"):
