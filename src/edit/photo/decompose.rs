@@ -1,6 +1,7 @@
 //! A photo to its [`Decomposition`]: the object found (or given), the nets on the square
 //! around it, then material and light refined through the layer from their predictions,
-//! and, if asked, the normals after them.
+//! and, if asked, the normals after them; known normals and a known light
+//! ([`PhotoOptions`]) take the nets' place.
 
 use std::time::Instant;
 

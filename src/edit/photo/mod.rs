@@ -5,7 +5,9 @@
 //! layer re-renders the photo, and, if asked, the normals with those fixed
 //! (`refine_normals`, an experiment: docs/edit.md); the object is then rendered with
 //! another material under the refined light and normals, at the photo's resolution, and
-//! composited over the untouched background with a soft mask.
+//! composited over the untouched background with a soft mask. Normals or a light known
+//! otherwise ([`PhotoOptions::normals`], [`PhotoOptions::env`]) take the nets' place: a
+//! known light is neither refined nor blurred, and only the material is refined under it.
 //!
 //! The crop: the square around the mask's bounding box with the margin the nets were
 //! trained with (the object fills the frame but 5% on each side), padded with black where
