@@ -109,11 +109,7 @@ pub(crate) fn edit_photo<'py>(
         }
         None => None,
     };
-    let steps = match steps {
-        Some(k) => k,
-        None if normals.is_some() && env.is_some() => photo::KNOWN_STEPS,
-        None => PhotoOptions::default().steps,
-    };
+    let steps = steps.unwrap_or_else(|| photo::default_steps(normals.is_some(), env.is_some()));
     let options = PhotoOptions {
         steps,
         detail,

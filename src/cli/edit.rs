@@ -159,11 +159,9 @@ pub fn run(args: &Args) -> Result<(), Failure> {
     };
     let known_env = known_light(&args.env)?;
     let like_env = known_light(&args.like_env)?;
-    let steps = match args.steps {
-        Some(k) => k,
-        None if known_normals.is_some() && known_env.is_some() => photo::KNOWN_STEPS,
-        None => PhotoOptions::default().steps,
-    };
+    let steps = args
+        .steps
+        .unwrap_or_else(|| photo::default_steps(known_normals.is_some(), known_env.is_some()));
     let options = PhotoOptions {
         steps: if args.no_refine { 0 } else { steps },
         normal_steps: if args.no_refine { 0 } else { args.normal_steps },
@@ -189,7 +187,9 @@ pub fn run(args: &Args) -> Result<(), Failure> {
                 env: like_env,
                 steps: match (args.no_refine, args.steps) {
                     (true, _) => 0,
-                    (false, k) => k.unwrap_or(PhotoOptions::default().steps),
+                    (false, k) => {
+                        k.unwrap_or_else(|| photo::default_steps(false, args.like_env.is_some()))
+                    }
                 },
                 ..options.clone()
             };

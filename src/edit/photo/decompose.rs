@@ -97,9 +97,11 @@ pub fn decompose<'a>(
     let inputs = Inputs::new(normals.clone(), target, Some(crop_mask.clone()))?;
     let work = inputs.downsampled(work_factor(crop.size, object_pixels, n, options));
     drop(inputs);
-    let light = match options.env {
-        Some(_) => Light::Fixed(p.env.clone()),
-        None => Light::FitFrom(p.env.clone()),
+    let light_known = options.env.is_some();
+    let light = if light_known {
+        Light::Fixed(p.env.clone())
+    } else {
+        Light::FitFrom(p.env.clone())
     };
     let mut fit_options = Options::new(p.material.clone(), light);
     fit_options.steps = options.steps;
@@ -123,9 +125,11 @@ pub fn decompose<'a>(
             })
         })?;
         let mut env = f.env;
-        let material = match options.env {
-            Some(_) => f.material,
-            None => relabel(&f.material, &mut env, REFINED_BIAS),
+        // the bias is the refinement's split of the gap between light and material
+        let material = if light_known {
+            f.material
+        } else {
+            relabel(&f.material, &mut env, REFINED_BIAS)
         };
         (material, env, f.losses)
     };
@@ -139,9 +143,10 @@ pub fn decompose<'a>(
     }
     let psnr_refined = judge(&work_normals, &material, &env)?;
     // a known light's detail is real; the refined light's below its broad shape is not
-    let env = match options.env {
-        Some(_) => env,
-        None => blur(&env, EDIT_LIGHT_BLUR),
+    let env = if light_known {
+        env
+    } else {
+        blur(&env, EDIT_LIGHT_BLUR)
     };
     let (render_normals, coverage) = render_grid(&normals, &crop_mask, crop.size.min(RENDER_SIZE));
     let mut d = Decomposition {

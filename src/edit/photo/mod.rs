@@ -55,6 +55,16 @@ pub const WORK_PIXELS: usize = 2048;
 /// (docs/edit.md, "What each guess costs").
 pub const KNOWN_STEPS: usize = 100;
 
+/// The refinement's steps where none are asked for: [`KNOWN_STEPS`] where the normals and
+/// the light are both known, else [`PhotoOptions::default`]'s.
+pub fn default_steps(normals_known: bool, light_known: bool) -> usize {
+    if normals_known && light_known {
+        KNOWN_STEPS
+    } else {
+        PhotoOptions::default().steps
+    }
+}
+
 /// How to edit.
 #[derive(Clone, Debug)]
 pub struct PhotoOptions {
