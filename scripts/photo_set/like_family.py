@@ -152,6 +152,7 @@ def main():
     ap.add_argument("--maps", type=int, default=8, help="how many of the split's HDRIs")
     ap.add_argument("--white-balance", type=float, metavar="ERROR",
                     help="balance each swatch for its light, as make_set.py's --white-balance (use a new OUT)")
+    ap.add_argument("--extra", default="", help="more options for `matedit edit`, e.g. \"--like-sphere\"")
     ap.add_argument("--known-light", nargs="?", const="fit", choices=["fit", "edit"],
                     help="read each material under the swatch's true light: by `matedit fit` with its true normals "
                          "(fit, the default), or by `edit --like --like-env` with the nets' (edit)")
@@ -164,7 +165,7 @@ def main():
     except Exception:  # no usable libLLVM: the scalar variant gives the same images, slower
         mi.set_variant("scalar_rgb")
     os.makedirs(args.out, exist_ok=True)
-    extra = ["--weights", args.weights] if args.weights else []
+    extra = (["--weights", args.weights] if args.weights else []) + args.extra.split()
     maps = SPLITS[args.split][1][: args.maps]
     t0 = time.time()
     results, rows = {}, []
