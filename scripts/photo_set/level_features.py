@@ -1,0 +1,79 @@
+"""Does anything in a photo tell the light's level better than the background's mean?
+
+For each scene of make_set.py's sets, the truth: the level of the light at the object
+(light.exr's mean luminance over the sphere, in the photo's units) over the mean luminance
+of the background (the pixels off the object and 3 pixels from it). The edit takes the
+light at a constant times the background's mean (docs/edit.md, "The light's level"); its
+error is this ratio's spread. Candidate statistics of the photo (the background's
+percentiles, its part above the object, the object's mean and brightest 2 %, the clipped
+fraction, all over the background's mean), one and two at a time, are fitted by least
+squares to the log ratio on one set and judged on the other: the log-rms left against the
+constant's.
+
+    python level_features.py --fit /tmp/or/tune24 --judge /tmp/or/test24
+"""
+
+import argparse
+import glob
+import itertools
+import os
+
+import numpy as np
+from PIL import Image
+from scipy import ndimage
+
+
+def linear(srgb8):
+    a = srgb8 / 255.0
+    return np.where(a <= 0.04045, a / 12.92, ((a + 0.055) / 1.055) ** 2.4)
+
+
+def luminance(rgb):
+    return rgb @ np.array([0.2126, 0.7152, 0.0722])
+
+
+def scene_features(mi, d):
+    photo = linear(np.asarray(Image.open(os.path.join(d, "photo.png")).convert("RGB"), np.float64))
+    mask = np.asarray(Image.open(os.path.join(d, "mask.png")).convert("L")) > 127
+    background = ~ndimage.binary_dilation(mask, iterations=3)
+    env = np.array(mi.Bitmap(os.path.join(d, "light.exr")), np.float64)[..., :3]
+    rows, cols = env.shape[:2]
+    weight = np.sin((np.arange(rows) + 0.5) / rows * np.pi)[:, None] * np.ones((1, cols))
+    level = (luminance(env) * weight).sum() / weight.sum()
+    lum = luminance(photo)
+    bg = lum[background]
+    first = np.nonzero(mask)[0].min()
+    above = lum[:first][background[:first]] if first > 2 else bg
+    ratio = lambda v: np.log(v / bg.mean())
+    return {"truth": ratio(level), "background mean": np.log(bg.mean()), "median": ratio(np.median(bg)),
+            "95th percentile": ratio(np.percentile(bg, 95)), "99.5th percentile": ratio(np.percentile(bg, 99.5)),
+            "above the object": ratio(above.mean()), "object mean": ratio(lum[mask].mean()),
+            "object's brightest 2 %": ratio(np.percentile(lum[mask], 98)),
+            "clipped fraction": (photo.max(-1) > 0.99).mean()}
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--fit", required=True, help="the set the fits are made on")
+    ap.add_argument("--judge", required=True, help="the set they are judged on")
+    args = ap.parse_args()
+    import mitsuba as mi
+    mi.set_variant("scalar_rgb")
+    fit, judge = ([scene_features(mi, d) for d in sorted(glob.glob(os.path.join(s, "[0-9]*/")))]
+                  for s in (args.fit, args.judge))
+    y_fit, y_judge = (np.array([f["truth"] for f in fs]) for fs in (fit, judge))
+    constant = np.sqrt(((y_judge - y_fit.mean()) ** 2).mean())
+    print(f"{len(fit)} scenes fitted, {len(judge)} judged; level over the background's mean: "
+          f"median {np.exp(np.median(y_fit)):.2f} and {np.exp(np.median(y_judge)):.2f}")
+    print(f"| statistics | log-rms, fitted | log-rms, judged |\n|---|---:|---:|\n| none (a constant) | "
+          f"{y_fit.std():.3f} | {constant:.3f} |")
+    names = [k for k in fit[0] if k != "truth"]
+    for combo in itertools.chain(itertools.combinations(names, 1), itertools.combinations(names, 2)):
+        x_fit, x_judge = (np.array([[1.0] + [f[k] for k in combo] for f in fs]) for fs in (fit, judge))
+        beta = np.linalg.lstsq(x_fit, y_fit, rcond=None)[0]
+        rms = lambda x, y: np.sqrt(((y - x @ beta) ** 2).mean())
+        print(f"| {', '.join(combo)} | {rms(x_fit, y_fit):.3f} | {rms(x_judge, y_judge):.3f} |")
+
+
+if __name__ == "__main__":
+    main()
