@@ -460,7 +460,7 @@ def test_the_example_recipes_load_and_each_pair_differs_in_the_rendering_loss():
         p for p in EXAMPLES.rglob("*.py") if f"matedit.nets.train {p.name} " in p.read_text()
     )
     assert {p.name for p in recipes} >= {"without_render_loss.py", "with_render_loss.py", "long.py",
-                                         "tune.py", "p16.py", "r16.py", "small.py"}
+                                         "tune.py", "p16.py", "q16.py", "r16.py", "small.py"}
     cfgs = {p.relative_to(EXAMPLES).as_posix(): train.load_config(p) for p in recipes}
     for without, with_, also in [("paper/without_render_loss.py", "paper/with_render_loss.py", {}),
                                  ("photo/p16.py", "photo/r16.py", {"render_pixels": 256})]:
