@@ -11,16 +11,24 @@ squares to the log ratio on one set and judged on the other: the log-rms left ag
 constant's.
 
     python level_features.py --fit /tmp/or/tune24 --judge /tmp/or/test24
+
+With `--fit-eval` and `--judge-eval` (evaluate.py's OUT folders for those sets, `--runs edit`,
+any `--weights`), the nets' own level joins the statistics: the log of the light the nets
+predicted (what `--no-background-light` keeps) over the background's mean, from the factors
+each edit's report.json says the light was scaled by to take the background's level.
 """
 
 import argparse
 import glob
 import itertools
+import json
 import os
 
 import numpy as np
 from PIL import Image
 from scipy import ndimage
+
+BACKGROUND_GAIN = 2.45  # src/edit/photo/light.rs: the light over the background's mean
 
 
 def linear(srgb8):
@@ -52,21 +60,50 @@ def scene_features(mi, d):
             "clipped fraction": (photo.max(-1) > 0.99).mean()}
 
 
+def nets_level(eval_dir, scene):
+    """log(the nets' light / the background's mean) of one scene's edit, or None where the
+    edit took its level from a grey card (nothing behind the object)."""
+    with open(os.path.join(eval_dir, scene, "edit", "report.json")) as f:
+        report = json.load(f)
+    if report["light_level_from"] != "background":
+        return None
+    return float(np.log(BACKGROUND_GAIN) - np.log(luminance(np.array(report["light_factors"]))))
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--fit", required=True, help="the set the fits are made on")
     ap.add_argument("--judge", required=True, help="the set they are judged on")
+    ap.add_argument("--fit-eval", help="evaluate.py's OUT for the --fit set: the nets' level joins")
+    ap.add_argument("--judge-eval", help="... and for the --judge set")
     args = ap.parse_args()
+    if (args.fit_eval is None) != (args.judge_eval is None):
+        ap.error("--fit-eval and --judge-eval come together")
     import mitsuba as mi
     mi.set_variant("scalar_rgb")
-    fit, judge = ([scene_features(mi, d) for d in sorted(glob.glob(os.path.join(s, "[0-9]*/")))]
-                  for s in (args.fit, args.judge))
+
+    def features(set_dir, eval_dir):
+        out = []
+        for d in sorted(glob.glob(os.path.join(set_dir, "[0-9]*/"))):
+            f = scene_features(mi, d)
+            if eval_dir:
+                f["the nets' level"] = nets_level(eval_dir, os.path.basename(os.path.normpath(d)))
+                if f["the nets' level"] is None:
+                    continue
+            out.append(f)
+        return out
+
+    fit, judge = features(args.fit, args.fit_eval), features(args.judge, args.judge_eval)
     y_fit, y_judge = (np.array([f["truth"] for f in fs]) for fs in (fit, judge))
     constant = np.sqrt(((y_judge - y_fit.mean()) ** 2).mean())
     print(f"{len(fit)} scenes fitted, {len(judge)} judged; level over the background's mean: "
           f"median {np.exp(np.median(y_fit)):.2f} and {np.exp(np.median(y_judge)):.2f}")
     print(f"| statistics | log-rms, fitted | log-rms, judged |\n|---|---:|---:|\n| none (a constant) | "
           f"{y_fit.std():.3f} | {constant:.3f} |")
+    if args.fit_eval:
+        for name, fs in (("fitted", fit), ("judged", judge)):
+            miss = [f["the nets' level"] - f["truth"] for f in fs]
+            print(f"the nets' level alone, {name}: log-rms {np.sqrt(np.mean(np.square(miss))):.3f}")
     names = [k for k in fit[0] if k != "truth"]
     for combo in itertools.chain(itertools.combinations(names, 1), itertools.combinations(names, 2)):
         x_fit, x_judge = (np.array([[1.0] + [f[k] for k in combo] for f in fs]) for fs in (fit, judge))
