@@ -62,6 +62,11 @@ pub struct Args {
     /// The other photo's light, known (as --env for the photo): its material is read under it.
     #[arg(long, value_name = "FILE", requires = "like")]
     like_env: Option<PathBuf>,
+    /// Refinement steps of the other photo's read [default: as --steps]: more read its
+    /// material closer to its own colour, fewer or more than the photo's own pair the two
+    /// reads less well (docs/edit.md, "A material read from a photo of a sphere").
+    #[arg(long, value_name = "K", requires = "like")]
+    like_steps: Option<usize>,
     /// Output folder (created if missing).
     #[arg(short, long, value_name = "OUT_DIR")]
     output: PathBuf,
@@ -86,7 +91,7 @@ pub struct Args {
     #[arg(long)]
     no_background_light: bool,
     /// The nets' predictions as they are, without refinement.
-    #[arg(long, conflicts_with_all = ["steps", "normal_steps"])]
+    #[arg(long, conflicts_with_all = ["steps", "normal_steps", "like_steps"])]
     no_refine: bool,
     /// The object's normals, known, in place of the nets': a normal map as for `render`
     /// (camera frame: x right, y up, z towards the viewer), the photo's size; a pixel on the
@@ -188,7 +193,7 @@ pub fn run(args: &Args) -> Result<(), Failure> {
             let like_options = PhotoOptions {
                 normals: None,
                 env: like_env,
-                steps: match (args.no_refine, args.steps) {
+                steps: match (args.no_refine, args.like_steps.or(args.steps)) {
                     (true, _) => 0,
                     (false, k) => {
                         k.unwrap_or_else(|| photo::default_steps(false, args.like_env.is_some()))
@@ -241,6 +246,7 @@ pub fn run(args: &Args) -> Result<(), Failure> {
         "material": material.name,
         "like": args.like.as_ref().map(|p| p.display().to_string()),
         "steps": d.losses.len(),
+        "like_steps": like.as_ref().map(|o| o.losses.len()),
         "normal_steps": d.normal_losses.len().saturating_sub(1),
         "normal_loss_first": d.normal_losses.first(),
         "normal_loss_last": d.normal_losses.last(),

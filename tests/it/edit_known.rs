@@ -69,8 +69,8 @@ fn known_normals_and_light_take_the_nets_place() {
     assert!(known.psnr_refined > guessed.psnr_refined + 3.0);
 }
 
-/// `--normals`, `--env` and `--like-env` on the command line: taken (the report says
-/// which light was given), and refused in one line, exit 2, nothing written, when the normal map is not the
+/// `--normals`, `--env`, `--like-env` and `--like-steps` on the command line: taken (the
+/// report says which light was given and how many steps each read took), and refused in one line, exit 2, nothing written, when the normal map is not the
 /// photo's size or the nets' light size does not divide the map.
 #[test]
 fn known_normals_and_light_from_files() {
@@ -144,6 +144,8 @@ fn known_normals_and_light_from_files() {
         light.as_os_str(),
         "--steps".as_ref(),
         "2".as_ref(),
+        "--like-steps".as_ref(),
+        "3".as_ref(),
         "-o".as_ref(),
         other.as_os_str(),
     ]);
@@ -151,4 +153,9 @@ fn known_normals_and_light_from_files() {
     let r = report(&other);
     assert_eq!(r["light_level_from"], "background");
     assert_eq!(r["like_light_level_from"], "given");
+    // --like-steps: the other photo's read takes its own steps
+    assert_eq!(
+        (r["steps"].as_u64(), r["like_steps"].as_u64()),
+        (Some(2), Some(3))
+    );
 }
