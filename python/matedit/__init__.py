@@ -148,7 +148,7 @@ def _photo(name: str, a) -> np.ndarray:
 
 
 def edit(photo, material=None, *, like=None, mask=None, like_mask=None, steps=None, weights=None, device="auto", box=None, points=None, detail=1.0,
-         mirror=True, normals=None, env=None, like_env=None) -> dict:
+         mirror=True, normals=None, env=None, like_env=None, like_steps=None) -> dict:
     """The object in `photo` made of another material, as `matedit edit` does (docs/edit.md).
 
     photo: (H, W, 3), linear float32 or 8-bit sRGB (uint8). material: a preset name or
@@ -167,7 +167,8 @@ def edit(photo, material=None, *, like=None, mask=None, like_mask=None, steps=No
     normals known otherwise (camera frame; a zero normal takes the nets'), and env: (h, w, 3)
     float32, a known lat-long light in the photo's units (the nets' 16 x 32 dividing it; only
     the material is refined, and edits render under it unblurred), as `--normals` and `--env`;
-    like_env: the like photo's light, as `--like-env`.
+    like_env: the like photo's light, as `--like-env`; like_steps: the like photo's
+    refinement steps (None: as `steps`), as `--like-steps`.
 
     Returns a dict: "edit" (H, W, 3) linear, "mask" and "alpha" (H, W), "normals" at the
     crop (S, S, 3) and "crop" (x0, y0, S), "env" (the refined light, blurred as edits
@@ -181,7 +182,8 @@ def edit(photo, material=None, *, like=None, mask=None, like_mask=None, steps=No
     if like is not None:
         grey = preset("matte-white")
         known = None if like_env is None else np.ascontiguousarray(like_env, dtype=np.float32)
-        m = edit_photo(_photo("like", like), grey, like_mask, steps, weights, device, mirror=mirror, env=known)["material"]
+        k = steps if like_steps is None else like_steps
+        m = edit_photo(_photo("like", like), grey, like_mask, k, weights, device, mirror=mirror, env=known)["material"]
     elif isinstance(material, str):
         m = preset(material)
     else:

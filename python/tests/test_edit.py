@@ -63,6 +63,11 @@ def test_known_normals_and_light_take_the_nets_place():
     a = matedit.edit(img, like=img, mask=mask, like_mask=mask, steps=5)["edit"]
     b = matedit.edit(img, like=img, mask=mask, like_mask=mask, steps=5, like_env=sky)["edit"]
     assert np.isfinite(b).all() and not np.allclose(a, b)
+    # like_steps: the like photo's read takes its own steps, the photo's `steps`
+    read = matedit.edit(img, "pvc", mask=mask, steps=0)["material"]
+    c = matedit.edit(img, like=img, mask=mask, like_mask=mask, steps=5, like_steps=0)["edit"]
+    assert np.array_equal(c, matedit.edit(img, read, mask=mask, steps=5)["edit"])
+    assert not np.allclose(a, c)
     with pytest.raises(ValueError, match=r"normals: shape \(32, 64, 3\), the photo \(64, 64, 3\)"):
         matedit.edit(img, "pvc", mask=mask, normals=normals[:32])
     with pytest.raises(ValueError, match=r"env \(the known light\): cannot make a 16x32 map from this 15x30 map"):
