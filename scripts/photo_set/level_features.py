@@ -28,26 +28,30 @@ import numpy as np
 from PIL import Image
 from scipy import ndimage
 
+from make_set import luminance
+
 BACKGROUND_GAIN = 2.45  # src/edit/photo/light.rs: the light over the background's mean
 
 
-def linear(srgb8):
-    a = srgb8 / 255.0
-    return np.where(a <= 0.04045, a / 12.92, ((a + 0.055) / 1.055) ** 2.4)
+def photo_and_mask(scene_dir):
+    """A scene's photo (linear RGB, float64) and its object's mask."""
+    srgb = np.asarray(Image.open(os.path.join(scene_dir, "photo.png")).convert("RGB"), np.float64) / 255
+    photo = np.where(srgb <= 0.04045, srgb / 12.92, ((srgb + 0.055) / 1.055) ** 2.4)
+    return photo, np.asarray(Image.open(os.path.join(scene_dir, "mask.png")).convert("L")) > 127
 
 
-def luminance(rgb):
-    return rgb @ np.array([0.2126, 0.7152, 0.0722])
+def light_level(mi, scene_dir):
+    """The mean luminance over the sphere of a scene's true light (light.exr) and the map."""
+    env = np.array(mi.Bitmap(os.path.join(scene_dir, "light.exr")), np.float64)[..., :3]
+    rows, cols = env.shape[:2]
+    weight = np.sin((np.arange(rows) + 0.5) / rows * np.pi)[:, None] * np.ones((1, cols))
+    return (luminance(env) * weight).sum() / weight.sum(), env
 
 
 def scene_features(mi, d):
-    photo = linear(np.asarray(Image.open(os.path.join(d, "photo.png")).convert("RGB"), np.float64))
-    mask = np.asarray(Image.open(os.path.join(d, "mask.png")).convert("L")) > 127
+    photo, mask = photo_and_mask(d)
     background = ~ndimage.binary_dilation(mask, iterations=3)
-    env = np.array(mi.Bitmap(os.path.join(d, "light.exr")), np.float64)[..., :3]
-    rows, cols = env.shape[:2]
-    weight = np.sin((np.arange(rows) + 0.5) / rows * np.pi)[:, None] * np.ones((1, cols))
-    level = (luminance(env) * weight).sum() / weight.sum()
+    level, _ = light_level(mi, d)
     lum = luminance(photo)
     bg = lum[background]
     first = np.nonzero(mask)[0].min()

@@ -12,11 +12,10 @@ import glob
 import os
 
 import numpy as np
-from PIL import Image
 from scipy import ndimage
 
-BACKGROUND_GAIN = 2.45  # src/edit/photo/light.rs
-LUM = np.array([0.2126, 0.7152, 0.0722])
+from level_features import BACKGROUND_GAIN, light_level, photo_and_mask
+from make_set import luminance
 
 
 def main():
@@ -32,15 +31,10 @@ def main():
         for f in os.listdir(d):
             if f != "light.exr" and not os.path.lexists(os.path.join(out, f)):
                 os.symlink(os.path.abspath(os.path.join(d, f)), os.path.join(out, f))
-        srgb = np.asarray(Image.open(os.path.join(d, "photo.png")).convert("RGB"), np.float64) / 255
-        image = np.where(srgb <= 0.04045, srgb / 12.92, ((srgb + 0.055) / 1.055) ** 2.4)
-        mask = np.asarray(Image.open(os.path.join(d, "mask.png")).convert("L")) > 127
+        image, mask = photo_and_mask(d)
         edge = max(2, round(0.01 * max(mask.shape)))
-        background = (image @ LUM)[~ndimage.binary_dilation(mask, iterations=edge)].mean()
-        env = np.array(mi.Bitmap(os.path.join(d, "light.exr")), np.float64)[..., :3]
-        rows, cols = env.shape[:2]
-        weight = np.sin((np.arange(rows) + 0.5) / rows * np.pi)[:, None] * np.ones((1, cols))
-        level = ((env @ LUM) * weight).sum() / weight.sum()
+        background = luminance(image)[~ndimage.binary_dilation(mask, iterations=edge)].mean()
+        level, env = light_level(mi, d)
         mi.Bitmap((env * BACKGROUND_GAIN * background / level).astype(np.float32)).write(os.path.join(out, "light.exr"))
         print(f"{os.path.basename(out)}: the true level is {level / (BACKGROUND_GAIN * background):.2f} times the rule's")
 

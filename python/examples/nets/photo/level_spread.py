@@ -17,15 +17,8 @@ import tarfile
 import numpy as np
 from scipy import ndimage
 
+from level_head import background_mean, level
 from matedit.nets.data import samples
-
-LUM = np.array([0.2126, 0.7152, 0.0722])
-
-
-def level(env):
-    h, w = env.shape[:2]
-    weight = np.sin((np.arange(h) + 0.5) / h * np.pi)[:, None] * np.ones((1, w))
-    return float(((env @ LUM) * weight).sum() / weight.sum())
 
 
 def main():
@@ -39,10 +32,9 @@ def main():
     ratio, level_log, clipped = [], [], []
     for s in samples(args.synth):
         image, mask, env = s["image"].numpy(), s["mask"].numpy(), s["env"].numpy()
-        background = ~ndimage.binary_dilation(mask, iterations=2)
-        ratio.append(np.log(level(env) / (image @ LUM)[background].mean()))
+        ratio.append(np.log(level(env) / background_mean(image, mask)))
         level_log.append(np.log(level(env)))
-        clipped.append((image[background].max(-1) >= 0.99).mean())
+        clipped.append((image[~ndimage.binary_dilation(mask, iterations=2)].max(-1) >= 0.99).mean())
     ratio, level_log, clipped = map(np.array, (ratio, level_log, clipped))
     print(f"{len(ratio)} samples: log(light / background) median {np.exp(np.median(ratio)):.2f}, log-std {ratio.std():.3f}")
 
