@@ -57,15 +57,25 @@ pub struct Args {
     like: Option<PathBuf>,
     /// The object's mask in the other photo (as --mask; default: its PNG alpha, else the
     /// nets find it).
-    #[arg(long, value_name = "MASK", requires = "like")]
+    #[arg(
+        long,
+        value_name = "MASK",
+        requires = "like",
+        conflicts_with = "material"
+    )]
     like_mask: Option<PathBuf>,
     /// The other photo's light, known (as --env for the photo): its material is read under it.
-    #[arg(long, value_name = "FILE", requires = "like")]
+    #[arg(
+        long,
+        value_name = "FILE",
+        requires = "like",
+        conflicts_with = "material"
+    )]
     like_env: Option<PathBuf>,
     /// Refinement steps of the other photo's read [default: as --steps]: more read its
     /// material closer to its own colour, fewer or more than the photo's own pair the two
     /// reads less well (docs/edit.md, "A material read from a photo of a sphere").
-    #[arg(long, value_name = "K", requires = "like")]
+    #[arg(long, value_name = "K", requires = "like", conflicts_with = "material")]
     like_steps: Option<usize>,
     /// Output folder (created if missing).
     #[arg(short, long, value_name = "OUT_DIR")]

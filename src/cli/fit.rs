@@ -47,7 +47,12 @@ pub struct Args {
     #[arg(long, value_name = "HxW")]
     fit_env: Option<EnvSize>,
     /// With --env: its size, as for `render` [default: 64x128].
-    #[arg(long, value_name = "HxW|full", requires = "env")]
+    #[arg(
+        long,
+        value_name = "HxW|full",
+        requires = "env",
+        conflicts_with = "fit_env"
+    )]
     env_size: Option<EnvSize>,
     /// Texel convention: 'equirect' or 'paper' [default: equirect].
     #[arg(long, value_name = "NAME")]

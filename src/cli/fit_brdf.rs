@@ -36,7 +36,7 @@ pub struct Args {
     )]
     nbrdf: Option<PathBuf>,
     /// The material of the NBRDF file to fit [default: all of them].
-    #[arg(long, value_name = "NAME", requires = "nbrdf")]
+    #[arg(long, value_name = "NAME", requires = "nbrdf", conflicts_with = "merl")]
     name: Option<String>,
     /// A MERL measured BRDF table (.binary).
     #[arg(long, value_name = "FILE")]

@@ -159,3 +159,40 @@ fn known_normals_and_light_from_files() {
         (Some(2), Some(3))
     );
 }
+
+/// The other photo's options (`--like-mask`, `--like-env`, `--like-steps`) with `--material`
+/// in place of `--like` are refused, exit 2, nothing written: clap waives an argument's
+/// requirement of `--like` when `--like` conflicts with an argument given, so each says
+/// it conflicts with `--material` as well.
+#[test]
+fn the_other_photos_options_need_the_other_photo() {
+    let tmp = tempfile::tempdir().unwrap();
+    let (a, a_mask) = photo(tmp.path(), "a", "capsule:seed=1", "plastic-red", 48);
+    let out = tmp.path().join("out");
+    for (option, value) in [
+        ("--like-mask", a_mask.as_os_str()),
+        ("--like-env", "light.exr".as_ref()),
+        ("--like-steps", "3".as_ref()),
+    ] {
+        let o = edit(&[
+            a.as_os_str(),
+            "--mask".as_ref(),
+            a_mask.as_os_str(),
+            "--material".as_ref(),
+            "gold".as_ref(),
+            option.as_ref(),
+            value,
+            "-o".as_ref(),
+            out.as_os_str(),
+        ])
+        .output()
+        .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{option}: {err}");
+        assert!(
+            err.contains(option) && err.contains("--material"),
+            "{option}: {err}"
+        );
+        assert!(!out.exists(), "{option}: wrote {}", out.display());
+    }
+}

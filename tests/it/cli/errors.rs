@@ -300,3 +300,44 @@ fn usage_errors_exit_2() {
         &["x.exr: no such file"],
     );
 }
+
+/// An option that needs another (`requires`) is refused beside the one that other excludes:
+/// clap waives the requirement there, so each such option excludes it too. `fit
+/// --env-size` with `--fit-env` (the size of a known light, with none known), `fit-brdf
+/// --name` with `--merl` (a material of an NBRDF file, with no such file).
+#[test]
+fn an_option_for_an_absent_input_is_refused() {
+    let d = dir();
+    let out = d.path().join("o");
+    let o = path_str(&out);
+    for (args, pair) in [
+        (
+            vec![
+                "fit",
+                "--image",
+                "i.exr",
+                "--sphere",
+                "--fit-env",
+                "4x8",
+                "--env-size",
+                "8x16",
+                "-o",
+                o,
+            ],
+            ("--fit-env", "--env-size"),
+        ),
+        (
+            vec!["fit-brdf", "--merl", "m.binary", "--name", "gold", "-o", o],
+            ("--merl", "--name"),
+        ),
+    ] {
+        let res = matedit().args(&args).output().unwrap();
+        let err = String::from_utf8_lossy(&res.stderr);
+        assert_eq!(res.status.code(), Some(2), "{args:?}: {err}");
+        assert!(
+            err.contains("cannot be used with") && err.contains(pair.0) && err.contains(pair.1),
+            "{err}"
+        );
+    }
+    assert!(listing(d.path()).is_empty());
+}
